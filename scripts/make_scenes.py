@@ -1,0 +1,190 @@
+"""Regenerate the built-in scene files in src/chekhov/scene/data/ (a developer tool).
+
+    python scripts/make_scenes.py [--kitchen PATH_TO/kitchen.env.xml]
+
+The kitchen comes from the TrajOpt package's ``data/kitchen.env.xml`` (OpenRAVE format: box
+``extents`` are half extents, ``translation`` the centre, ``quat`` w x y z); every box is kept
+with its extents and position and given a semantic class. The other three scenes are designed
+here for the Baxter left arm, as described in the paper. chekhov never reads the XML at run time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import xml.etree.ElementTree as ET
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+OUT = Path(__file__).resolve().parents[1] / "src" / "chekhov" / "scene" / "data"
+BASE = {"xyz": [0.0, 0.0, 0.93], "rpy": [0.0, 0.0, 0.0]}  # Baxter base frame 0.93 m above floor
+
+
+def box(name: str, cls: str, size: list[float], xyz: list[float], **extra: Any) -> dict[str, Any]:
+    d: dict[str, Any] = {"name": name, "class": cls, "shape": "box",
+                         "size": [round(s, 4) for s in size],
+                         "pose": {"xyz": [round(v, 4) for v in xyz], "rpy": [0, 0, 0]}}
+    d.update(extra)
+    return d
+
+
+def table(top_z: float = 0.75, cx: float = 0.85, cy: float = 0.25, sx: float = 0.8,
+          sy: float = 1.5) -> list[dict[str, Any]]:
+    t = 0.04
+    objs = [box("tabletop", "table", [sx, sy, t], [cx, cy, top_z - t / 2])]
+    leg_h = top_z - t
+    for i, (dx, dy) in enumerate([(-1, -1), (-1, 1), (1, -1), (1, 1)]):
+        objs.append({"name": f"table_leg_{i}", "class": "table", "shape": "cylinder",
+                     "size": [0.03, round(leg_h, 4)],
+                     "pose": {"xyz": [round(cx + dx * (sx / 2 - 0.06), 4),
+                                      round(cy + dy * (sy / 2 - 0.06), 4), round(leg_h / 2, 4)],
+                              "rpy": [0, 0, 0]}})
+    return objs
+
+
+GRASP_BOX = [{"generate": {"approaches": ["top", "front"], "standoff": 0.10, "depth": 0.03}}]
+
+
+def tabletop_pole() -> dict[str, Any]:
+    objs = table()
+    objs.append({"name": "pole", "class": "pole", "shape": "cylinder", "size": [0.03, 0.7],
+                 "pose": {"xyz": [0.80, 0.30, 1.10], "rpy": [0, 0, 0]}})
+    objs.append(box("box_left", "box", [0.10, 0.10, 0.16], [0.75, 0.68, 0.83], grasps=GRASP_BOX))
+    objs.append(box("box_right", "box", [0.10, 0.10, 0.16], [0.75, -0.08, 0.83], grasps=GRASP_BOX))
+    return {"name": "tabletop_pole",
+            "description": "Tabletop pick-and-place: a slender pole in the middle of the table "
+                           "and a box on each side of it.",
+            "robot": "baxter_left", "base_pose": BASE, "objects": objs,
+            "regions": [{"name": "above_table", "center": [0.85, 0.25, 1.0],
+                         "size": [0.8, 1.5, 0.5], "weight": 3.0}]}
+
+
+def tabletop_container() -> dict[str, Any]:
+    objs = table()
+    cx, cy, w, d, h, t, z0 = 0.82, 0.32, 0.45, 0.60, 0.22, 0.015, 0.75
+    objs += [
+        box("container_bottom", "container", [w, d, t], [cx, cy, z0 + t / 2]),
+        box("container_front", "container", [t, d, h], [cx - w / 2 + t / 2, cy, z0 + h / 2]),
+        box("container_back", "container", [t, d, h], [cx + w / 2 - t / 2, cy, z0 + h / 2]),
+        box("container_left", "container", [w, t, h], [cx, cy + d / 2 - t / 2, z0 + h / 2]),
+        box("container_right", "container", [w, t, h], [cx, cy - d / 2 + t / 2, z0 + h / 2]),
+        box("box_in_0", "box", [0.08, 0.08, 0.12], [cx - 0.08, cy - 0.14, z0 + t + 0.06],
+            grasps=[{"generate": {"approaches": ["top"], "standoff": 0.12, "depth": 0.03}}]),
+        box("box_in_1", "box", [0.08, 0.10, 0.10], [cx + 0.07, cy + 0.13, z0 + t + 0.05],
+            grasps=[{"generate": {"approaches": ["top"], "standoff": 0.12, "depth": 0.03}}]),
+        box("box_out_0", "box", [0.10, 0.10, 0.14], [0.70, -0.20, z0 + 0.07], grasps=GRASP_BOX),
+        box("box_out_1", "box", [0.10, 0.10, 0.14], [0.68, 0.85, z0 + 0.07], grasps=GRASP_BOX),
+    ]
+    return {"name": "tabletop_container",
+            "description": "A table with a large open container; boxes inside and outside it.",
+            "robot": "baxter_left", "base_pose": BASE, "objects": objs,
+            "regions": [{"name": "above_table", "center": [0.85, 0.25, 1.0],
+                         "size": [0.8, 1.5, 0.5], "weight": 2.0},
+                        {"name": "inside_container", "center": [cx, cy, z0 + 0.15],
+                         "size": [w - 0.05, d - 0.05, 0.2], "weight": 3.0}]}
+
+
+def shelf_boxes() -> dict[str, Any]:
+    x0, depth, y0, width, t = 0.68, 0.36, -0.25, 1.10, 0.02
+    levels = [0.62 + 0.21 * k for k in range(7)]  # top surface of each level's board
+    roof = levels[-1] + 0.21
+    cx, cy = x0 + depth / 2, y0 + width / 2
+    objs = [box(f"board_{k}", "shelf", [depth, width, t], [cx, cy, z - t / 2])
+            for k, z in enumerate(levels)]
+    objs.append(box("roof", "shelf", [depth, width, t], [cx, cy, roof + t / 2]))
+    objs.append(box("side_left", "shelf", [depth, t, roof + t], [cx, y0 + width + t / 2,
+                                                                   (roof + t) / 2]))
+    objs.append(box("side_right", "shelf", [depth, t, roof + t], [cx, y0 - t / 2, (roof + t) / 2]))
+    objs.append(box("back", "shelf", [t, width + 2 * t, roof + t], [x0 + depth + t / 2, cy,
+                                                                     (roof + t) / 2]))
+    regions = []
+    for k, z in enumerate(levels):
+        # two boxes a level, at positions that change from level to level
+        for j, (fy, sx, sy, sz) in enumerate([(0.18 + 0.09 * (k % 3), 0.09, 0.09, 0.12),
+                                              (0.68 - 0.07 * (k % 4), 0.08, 0.12, 0.10)]):
+            objs.append(box(f"box_{k}_{j}", "box", [sx, sy, sz],
+                            [x0 + depth - 0.08, y0 + fy * width, z + sz / 2],
+                            grasps=[{"generate": {"approaches": ["front"], "standoff": 0.10,
+                                                  "depth": 0.03}}]))
+        regions.append({"name": f"level_{k}", "center": [round(cx, 4), round(cy, 4),
+                                                        round(z + 0.095, 4)],
+                        "size": [depth, width, 0.17], "weight": 2.0})
+    return {"name": "shelf_boxes",
+            "description": "A 7-level shelf with boxes on each level (narrow gaps: the hard scene).",
+            "robot": "baxter_left", "base_pose": BASE, "objects": objs, "regions": regions}
+
+
+KITCHEN_CLASSES = [
+    ("dishwasher_door", "door"), ("dishwasher_handle", "handle"), ("freezer_handle", "handle"),
+    ("fridge_door", "door"), ("freezer_door", "door"), ("fridge", "fridge"),
+    ("countertop", "counter"), ("sink", "sink"), ("back_wall", "wall"),
+    ("dishwasher", "appliance"), ("faucet", "appliance"), ("knob", "handle"),
+    ("cabinet", "cabinet"), ("table", "table"),
+]
+
+
+def kitchen(xml_path: Path) -> dict[str, Any]:
+    root = ET.parse(xml_path).getroot()
+    hinge_world = (0.60, 0.16)  # dishwasher door hinge: its front bottom edge (x, z)
+    objs = []
+    for kb in root.findall("KinBody"):
+        geoms = list(kb.iter("Geom"))
+        for gi, g in enumerate(geoms):
+            if g.get("type") != "box":
+                raise ValueError(f"{xml_path}: {kb.get('name')}: only boxes are expected")
+            ext = [float(v) for v in (g.findtext("extents") or "").split()]
+            xyz = [float(v) for v in (g.findtext("translation") or "").split()]
+            quat = [float(v) for v in (g.findtext("quat") or "1 0 0 0").split()]
+            name = str(kb.get("name")) + (f"_{gi}" if len(geoms) > 1 else "")
+            cls = next(c for key, c in KITCHEN_CLASSES if key in name or key == "table" and
+                       name.startswith("table"))
+            d: dict[str, Any] = {"name": name, "class": cls, "shape": "box",
+                                 "size": [round(2 * e, 6) for e in ext],
+                                 "pose": {"xyz": xyz, "quat": quat}}
+            if name.startswith("dishwasher_door") or name.startswith("dishwasher_handle"):
+                d["articulation"] = {
+                    "type": "hinge", "axis": [0, 1, 0],
+                    "origin": [round(hinge_world[0] - xyz[0], 6), 0.0,
+                               round(hinge_world[1] - xyz[2], 6)],
+                    "states": {"open": 0.0, "closed": round(-math.pi / 2, 6)}, "state": "open"}
+            if name == "dishwasher_handle":
+                d["grasps"] = [{"generate": {"approaches": ["bottom"], "standoff": 0.10,
+                                             "depth": 0.0}}]
+            if name == "freezer_handle":
+                d["grasps"] = [{"generate": {"approaches": ["back"], "standoff": 0.10,
+                                             "depth": 0.0}}]
+            objs.append(d)
+    return {"name": "kitchen",
+            "description": "The kitchen of the TrajOpt package (50 boxes, kept as given), Baxter "
+                           "facing the counter between the fridge and the sink.",
+            "robot": "baxter_left",
+            "base_pose": {"xyz": [1.05, 1.25, 0.93], "rpy": [0.0, 0.0, round(math.pi, 9)]},
+            "objects": objs,
+            "regions": [
+                {"name": "above_countertop_left", "center": [0.3, 1.01, 0.95],
+                 "size": [0.58, 0.58, 0.38], "weight": 3.0},
+                {"name": "in_sink", "center": [0.3, 1.6, 0.7], "size": [0.56, 0.56, 0.36],
+                 "weight": 2.0},
+                {"name": "fridge_shelves", "center": [0.3, 0.36, 1.07], "size": [0.56, 0.66, 0.5],
+                 "weight": 1.0},
+                {"name": "upper_cabinet_low", "center": [0.2, 1.2, 1.375],
+                 "size": [0.38, 0.8, 0.33], "weight": 1.0}]}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--kitchen", type=Path,
+                    default=Path(__file__).resolve().parents[2] / "shared/data/kitchen.env.xml")
+    args = ap.parse_args()
+    for scene in (tabletop_pole(), tabletop_container(), shelf_boxes(), kitchen(args.kitchen)):
+        path = OUT / f"{scene['name']}.yaml"
+        head = f"# {scene['name']}: generated by scripts/make_scenes.py; format in README.md\n"
+        path.write_text(head + yaml.safe_dump({"format": 1, **scene}, sort_keys=False,
+                                              default_flow_style=None, width=100))
+        print(f"wrote {path} ({len(scene['objects'])} objects)")
+
+
+if __name__ == "__main__":
+    main()

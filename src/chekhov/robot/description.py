@@ -1,0 +1,133 @@
+"""What a robot is for chekhov: URDF source, planning group, end effector, fixed joints, base."""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from chekhov.errors import RobotError
+
+
+@dataclass(frozen=True)
+class SphereSettings:
+    """How the fast checker's sphere model is generated from the URDF collision geometry.
+
+    Attributes:
+        max_excess: largest allowed relative radius excess of a covering sphere over the
+            cylinder / box cross-section it covers (0.15 = spheres at most 15 % fatter).
+        padding: metres added to every sphere radius, so rounding never lets a sphere
+            under-cover its geometry.
+        mesh_spheres: spheres used to cover one collision mesh (k-means on its triangles).
+    """
+
+    max_excess: float = 0.15
+    padding: float = 0.002
+    mesh_spheres: int = 12
+
+
+@dataclass(frozen=True)
+class RobotDescription:
+    """A robot and its planning group.
+
+    Attributes:
+        name: short name, e.g. ``baxter_left``.
+        urdf: URDF path, absolute or relative to the ``example-robot-data`` share folder.
+        srdf: SRDF path (same rules) whose ``disable_collisions`` entries prune self-collision
+            pairs, or ``None``.
+        group_joints: the planned joints, in the order of every configuration vector.
+        ee_frame: the end-effector frame (its z axis is the approach direction).
+        fixed_joints: value (rad or m) of every joint outside the group; unnamed ones are 0.
+        xyz_world_base, rpy_world_base: default base pose in the world (m, rad); a scene may
+            override it.
+        proximal_joints: how many leading group joints the roadmap samples (the rest stay at
+            ``roadmap_fixed`` values).
+        roadmap_fixed: values (rad) of the distal group joints for roadmap nodes.
+    """
+
+    name: str
+    urdf: str
+    srdf: str | None
+    group_joints: tuple[str, ...]
+    ee_frame: str
+    fixed_joints: tuple[tuple[str, float], ...] = ()
+    xyz_world_base: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rpy_world_base: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    proximal_joints: int = 4
+    roadmap_fixed: tuple[float, ...] = ()
+    spheres: SphereSettings = field(default_factory=SphereSettings)
+
+    @property
+    def dof(self) -> int:
+        return len(self.group_joints)
+
+    def resolve(self, path: str) -> Path:
+        """Absolute path of a URDF/SRDF entry."""
+        p = Path(path)
+        return p if p.is_absolute() else example_robot_data_dir() / p
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any], source: str = "<dict>") -> RobotDescription:
+        known = {f for f in cls.__dataclass_fields__}
+        unknown = set(d) - known
+        if unknown:
+            raise RobotError(f"{source}: unknown field(s) {sorted(unknown)}; known: {sorted(known)}")
+        for req in ("name", "urdf", "group_joints", "ee_frame"):
+            if req not in d:
+                raise RobotError(f"{source}: missing field '{req}'")
+        kw = dict(d)
+        kw["group_joints"] = tuple(str(j) for j in d["group_joints"])
+        kw["fixed_joints"] = tuple((str(k), float(v)) for k, v in d.get("fixed_joints", {}).items())
+        for key in ("xyz_world_base", "rpy_world_base"):
+            if key in d:
+                v = d[key]
+                if not (isinstance(v, list | tuple) and len(v) == 3):
+                    raise RobotError(f"{source}: field '{key}' must be 3 numbers, got {v!r}")
+                kw[key] = tuple(float(x) for x in v)
+        kw["roadmap_fixed"] = tuple(float(x) for x in d.get("roadmap_fixed", ()))
+        kw["spheres"] = SphereSettings(**d.get("spheres", {}))
+        kw.setdefault("srdf", None)
+        desc = cls(**kw)
+        n_distal = desc.dof - desc.proximal_joints
+        if desc.roadmap_fixed and len(desc.roadmap_fixed) != n_distal:
+            raise RobotError(
+                f"{source}: roadmap_fixed has {len(desc.roadmap_fixed)} values, "
+                f"expected {n_distal} (dof {desc.dof} - proximal_joints {desc.proximal_joints})"
+            )
+        return desc
+
+    @classmethod
+    def from_yaml(cls, path: str | Path) -> RobotDescription:
+        path = Path(path)
+        try:
+            d = yaml.safe_load(path.read_text())
+        except (OSError, yaml.YAMLError) as e:
+            raise RobotError(f"{path}: cannot read robot description: {e}") from e
+        if not isinstance(d, dict):
+            raise RobotError(f"{path}: expected a mapping at top level")
+        return cls.from_dict(d, source=str(path))
+
+    @classmethod
+    def builtin(cls, name: str) -> RobotDescription:
+        """A description shipped with chekhov (``baxter_left``, ``panda``)."""
+        files = resources.files("chekhov.robot") / "data"
+        target = files / f"{name}.yaml"
+        if not target.is_file():
+            names = sorted(p.name[:-5] for p in files.iterdir() if p.name.endswith(".yaml"))
+            raise RobotError(f"no built-in robot '{name}'; available: {names}")
+        return cls.from_yaml(Path(str(target)))
+
+
+def example_robot_data_dir() -> Path:
+    """The ``share/example-robot-data`` folder of the installed PyPI package."""
+    for entry in sys.path:
+        p = Path(entry) / "cmeel.prefix" / "share" / "example-robot-data"
+        if p.is_dir():
+            return p
+    raise RobotError(
+        "the example-robot-data package is not installed (pip install example-robot-data)"
+    )

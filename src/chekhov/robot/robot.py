@@ -1,0 +1,226 @@
+"""The planning robot: a pinocchio model reduced to the planning group, expressed in the world."""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from chekhov.errors import RobotError
+from chekhov.robot.description import RobotDescription, example_robot_data_dir
+from chekhov.transforms import make_transform, rpy_to_matrix
+
+Array = NDArray[np.float64]
+
+
+class Robot:
+    """A robot reduced to its planning group (K joints), every frame expressed in the world.
+
+    Joints outside the group are locked at ``description.fixed_joints``; their links stay in the
+    collision model as fixed geometry. Configurations are arrays of shape (K,) in radians, in the
+    order of ``description.group_joints``.
+    """
+
+    def __init__(self, description: RobotDescription, T_world_base: Array | None = None) -> None:
+        self.description = description
+        if T_world_base is None:
+            T_world_base = make_transform(
+                description.xyz_world_base, rpy_to_matrix(description.rpy_world_base)
+            )
+        self.T_world_base = np.asarray(T_world_base, dtype=float).copy()
+        urdf = description.resolve(description.urdf)
+        if not urdf.is_file():
+            raise RobotError(f"robot '{description.name}': URDF not found at {urdf}")
+        package_dir = str(example_robot_data_dir().parent)
+        full = pin.buildModelFromUrdf(str(urdf))
+        col = pin.buildGeomFromUrdf(full, str(urdf), pin.COLLISION, package_dirs=[package_dir])
+        vis = pin.buildGeomFromUrdf(full, str(urdf), pin.VISUAL, package_dirs=[package_dir])
+        names = list(full.names)
+        missing = [j for j in description.group_joints if j not in names]
+        if missing:
+            raise RobotError(f"robot '{description.name}': group joints {missing} not in {urdf}")
+        q_ref = pin.neutral(full)
+        for jname, value in description.fixed_joints:
+            if jname not in names:
+                raise RobotError(f"robot '{description.name}': fixed joint '{jname}' not in {urdf}")
+            q_ref[full.joints[full.getJointId(jname)].idx_q] = value
+        lock = [
+            full.getJointId(n) for n in names[1:] if n not in description.group_joints
+        ]
+        model, (col, vis) = pin.buildReducedModel(full, [col, vis], lock, q_ref)
+        _move_base(model, [col, vis], pin.SE3(self.T_world_base))
+        reduced_names = list(model.names)[1:]
+        if reduced_names != list(description.group_joints):
+            raise RobotError(
+                f"robot '{description.name}': group joints must be listed in kinematic order; "
+                f"the model orders them {reduced_names}"
+            )
+        if not model.existFrame(description.ee_frame):
+            raise RobotError(f"robot '{description.name}': no end-effector frame "
+                             f"'{description.ee_frame}' in {urdf}")
+        self.model = model
+        self.data = model.createData()
+        self.collision_model = col
+        self.visual_model = vis
+        self.ee_frame_id = model.getFrameId(description.ee_frame)
+        self.lower = model.lowerPositionLimit.copy()
+        self.upper = model.upperPositionLimit.copy()
+        self.velocity_limit = model.velocityLimit.copy()
+        self.effort_limit = model.effortLimit.copy()
+        self._srdf_disabled = _read_disabled_pairs(
+            description.resolve(description.srdf) if description.srdf else None
+        )
+
+    # --- construction -------------------------------------------------------------------
+    @classmethod
+    def load(cls, name: str = "baxter_left", T_world_base: Array | None = None) -> Robot:
+        """A built-in robot (``baxter_left`` or ``panda``), optionally at another base pose."""
+        return cls(RobotDescription.builtin(name), T_world_base)
+
+    @classmethod
+    def from_yaml(cls, path: str | Path, T_world_base: Array | None = None) -> Robot:
+        return cls(RobotDescription.from_yaml(path), T_world_base)
+
+    # --- basic facts --------------------------------------------------------------------
+    @property
+    def name(self) -> str:
+        return self.description.name
+
+    @property
+    def dof(self) -> int:
+        return int(self.model.nq)
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        return self.description.group_joints
+
+    def check_configuration(self, q: Array, what: str = "configuration") -> Array:
+        """q as a float array of shape (K,); a clear error for a wrong size or NaN."""
+        arr = np.asarray(q, dtype=float)
+        if arr.shape != (self.dof,):
+            raise RobotError(
+                f"{what}: expected {self.dof} joint values for {self.joint_names}, "
+                f"got shape {arr.shape}"
+            )
+        if not np.all(np.isfinite(arr)):
+            raise RobotError(f"{what}: contains NaN or inf: {arr}")
+        return arr
+
+    def within_limits(self, Q: Array, tol: float = 1e-9) -> NDArray[np.bool_]:
+        """Whether each row of Q (N, K) lies within the joint limits."""
+        Q = np.atleast_2d(Q)
+        return np.all((Q >= self.lower - tol) & (Q <= self.upper + tol), axis=1)
+
+    def sample_uniform(self, rng: np.random.Generator, n: int) -> Array:
+        """n configurations drawn uniformly within the joint limits, shape (n, K)."""
+        return rng.uniform(self.lower, self.upper, size=(n, self.dof))
+
+    # --- kinematics ---------------------------------------------------------------------
+    def compute_frame_pose(self, q: Array, frame: str | int | None = None) -> Array:
+        """T_world_frame (4, 4) at q; the end-effector frame by default."""
+        fid = self._frame_id(frame)
+        pin.framesForwardKinematics(self.model, self.data, np.asarray(q, dtype=float))
+        return self.data.oMf[fid].homogeneous.copy()
+
+    def compute_ee_pose(self, q: Array) -> Array:
+        """T_world_ee (4, 4) at q."""
+        return self.compute_frame_pose(q, self.ee_frame_id)
+
+    def compute_ee_poses(self, Q: Array) -> Array:
+        """T_world_ee for each row of Q (N, K): shape (N, 4, 4)."""
+        Q = np.atleast_2d(np.asarray(Q, dtype=float))
+        out = np.empty((len(Q), 4, 4))
+        for i, q in enumerate(Q):
+            pin.framesForwardKinematics(self.model, self.data, q)
+            out[i] = self.data.oMf[self.ee_frame_id].homogeneous
+        return out
+
+    def compute_frame_jacobian(self, q: Array, frame: str | int | None = None) -> Array:
+        """Jacobian (6, K) of the frame's velocity, world-aligned at the frame origin.
+
+        Rows 0-2 map joint rates (rad/s) to linear velocity (m/s), rows 3-5 to angular (rad/s).
+        """
+        fid = self._frame_id(frame)
+        return pin.computeFrameJacobian(
+            self.model, self.data, np.asarray(q, dtype=float), fid, pin.LOCAL_WORLD_ALIGNED
+        ).copy()
+
+    def compute_joint_placements(self, q: Array) -> Array:
+        """T_world_joint of every group joint at q, shape (K, 4, 4)."""
+        pin.forwardKinematics(self.model, self.data, np.asarray(q, dtype=float))
+        return np.stack([self.data.oMi[j].homogeneous for j in range(1, self.model.njoints)])
+
+    def _frame_id(self, frame: str | int | None) -> int:
+        if frame is None:
+            return self.ee_frame_id
+        if isinstance(frame, str):
+            if not self.model.existFrame(frame):
+                raise RobotError(f"robot '{self.name}': no frame '{frame}'")
+            return int(self.model.getFrameId(frame))
+        return int(frame)
+
+    # --- collision structure ------------------------------------------------------------
+    def geometry_link(self, index: int) -> str:
+        """Name of the link that carries collision geometry ``index``."""
+        g = self.collision_model.geometryObjects[index]
+        return str(self.model.frames[g.parentFrame].name)
+
+    @cached_property
+    def moving_geometries(self) -> tuple[int, ...]:
+        """Collision geometries that move with the group joints."""
+        return tuple(
+            i for i, g in enumerate(self.collision_model.geometryObjects) if g.parentJoint > 0
+        )
+
+    @cached_property
+    def self_collision_pairs(self) -> tuple[tuple[int, int], ...]:
+        """Pairs of collision geometries checked for self-collision.
+
+        A pair is checked when at least one geometry moves, the two are on different joints,
+        and the SRDF does not disable their links (adjacent links or never in collision).
+        """
+        geoms = self.collision_model.geometryObjects
+        moving = set(self.moving_geometries)
+        pairs = []
+        for i in range(len(geoms)):
+            for j in range(i + 1, len(geoms)):
+                if i not in moving and j not in moving:
+                    continue
+                if geoms[i].parentJoint == geoms[j].parentJoint:
+                    continue
+                a, b = self.geometry_link(i), self.geometry_link(j)
+                if a == b or frozenset((a, b)) in self._srdf_disabled:
+                    continue
+                pairs.append((i, j))
+        return tuple(pairs)
+
+
+def _move_base(model: pin.Model, geometry_models: list[pin.GeometryModel], T: pin.SE3) -> None:
+    """Re-express everything attached to the universe in the world: left-multiply by T."""
+    for j in range(1, model.njoints):
+        if model.parents[j] == 0:
+            model.jointPlacements[j] = T * model.jointPlacements[j]
+    for f in model.frames:
+        if f.parentJoint == 0 and f.name != "universe":
+            f.placement = T * f.placement
+    for gm in geometry_models:
+        for g in gm.geometryObjects:
+            if g.parentJoint == 0:
+                g.placement = T * g.placement
+
+
+def _read_disabled_pairs(srdf: Path | None) -> frozenset[frozenset[str]]:
+    if srdf is None:
+        return frozenset()
+    try:
+        root = ET.parse(srdf).getroot()
+    except (OSError, ET.ParseError) as e:
+        raise RobotError(f"{srdf}: cannot read SRDF: {e}") from e
+    return frozenset(
+        frozenset((el.get("link1", ""), el.get("link2", "")))
+        for el in root.iter("disable_collisions")
+    )

@@ -1,0 +1,130 @@
+"""Sphere models that cover a robot's collision geometry, for the fast checker.
+
+Every sphere set returned here contains its geometry: cylinders and boxes are cut into slabs
+along their long axis, each slab inside one sphere; meshes are split into triangle clusters,
+each cluster inside one sphere (a sphere holding a triangle's three corners holds the triangle).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import coal
+import numpy as np
+from numpy.typing import NDArray
+from scipy.cluster.vq import kmeans2
+
+from chekhov.errors import RobotError
+from chekhov.robot.robot import Robot
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class SphereModel:
+    """Spheres covering the moving collision geometry of a robot.
+
+    Attributes:
+        centers: sphere centres in their joint's frame, shape (M, 3), metres.
+        radii: radii, shape (M,), metres (padding included).
+        joints: 0-based group joint each sphere moves with, shape (M,).
+        geometries: index of the collision geometry each sphere covers, shape (M,).
+    """
+
+    centers: Array
+    radii: Array
+    joints: NDArray[np.int64]
+    geometries: NDArray[np.int64]
+
+    def __len__(self) -> int:
+        return len(self.radii)
+
+
+def mesh_triangles(geometry: coal.CollisionGeometry) -> Array:
+    """Triangles of a coal BVH mesh as corner coordinates, shape (F, 3, 3)."""
+    verts = np.asarray(geometry.vertices(), dtype=float)
+    idx = np.array(
+        [[t[0], t[1], t[2]] for t in (geometry.tri_indices(i) for i in range(geometry.num_tris))],
+        dtype=np.int64,
+    )
+    return verts[idx]
+
+
+def cover_cylinder(radius: float, half_length: float, max_excess: float) -> tuple[Array, Array]:
+    """Spheres (centres (n, 3), radii (n,)) covering a z-axis cylinder centred at the origin."""
+    return _cover_prism(radius, half_length, max_excess, axis=2)
+
+
+def cover_box(half_extents: Array, max_excess: float) -> tuple[Array, Array]:
+    """Spheres covering an origin-centred box, cut along its longest axis."""
+    h = np.asarray(half_extents, dtype=float)
+    axis = int(np.argmax(h))
+    others = [i for i in range(3) if i != axis]
+    cross = float(np.hypot(h[others[0]], h[others[1]]))
+    return _cover_prism(cross, float(h[axis]), max_excess, axis)
+
+
+def _cover_prism(cross: float, half_length: float, max_excess: float, axis: int
+                 ) -> tuple[Array, Array]:
+    step = cross * np.sqrt((1.0 + max_excess) ** 2 - 1.0)  # largest slab half-height allowed
+    n = max(1, int(np.ceil(half_length / step - 1e-9)))
+    s = half_length / n
+    centers = np.zeros((n, 3))
+    centers[:, axis] = -half_length + (2 * np.arange(n) + 1) * s
+    return centers, np.full(n, np.hypot(cross, s))
+
+
+def cover_triangles(triangles: Array, n_spheres: int, seed: int = 0) -> tuple[Array, Array]:
+    """Spheres covering a triangle soup (F, 3, 3): k-means on centroids, one sphere a cluster."""
+    centroids = triangles.mean(axis=1)
+    k = min(n_spheres, len(triangles))
+    _, labels = kmeans2(centroids, k, seed=seed, minit="++")
+    centers, radii = [], []
+    for c in range(k):
+        pts = triangles[labels == c].reshape(-1, 3)
+        if len(pts) == 0:
+            continue
+        mid = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+        centers.append(mid)
+        radii.append(float(np.max(np.linalg.norm(pts - mid, axis=1))))
+    return np.array(centers), np.array(radii)
+
+
+def cover_geometry(geometry: coal.CollisionGeometry, max_excess: float, mesh_spheres: int
+                   ) -> tuple[Array, Array]:
+    """Spheres covering one coal shape, in the shape's own frame."""
+    if isinstance(geometry, coal.Sphere):
+        return np.zeros((1, 3)), np.array([geometry.radius])
+    if isinstance(geometry, coal.Cylinder):
+        return cover_cylinder(geometry.radius, geometry.halfLength, max_excess)
+    if isinstance(geometry, coal.Capsule):
+        c, _ = cover_cylinder(geometry.radius, geometry.halfLength, max_excess)
+        c = np.vstack([c, [[0, 0, -geometry.halfLength], [0, 0, geometry.halfLength]]])
+        r = np.full(len(c), geometry.radius)
+        r[:-2] = np.hypot(geometry.radius, geometry.halfLength / max(1, len(c) - 2))
+        return c, r
+    if isinstance(geometry, coal.Box):
+        return cover_box(np.asarray(geometry.halfSide), max_excess)
+    if hasattr(geometry, "num_tris"):
+        return cover_triangles(mesh_triangles(geometry), mesh_spheres)
+    raise RobotError(f"cannot cover collision shape of type {type(geometry).__name__} with spheres")
+
+
+def build_sphere_model(robot: Robot) -> SphereModel:
+    """Spheres covering every moving collision geometry of ``robot`` (padding included)."""
+    settings = robot.description.spheres
+    centers, radii, joints, geoms = [], [], [], []
+    for gi in robot.moving_geometries:
+        g = robot.collision_model.geometryObjects[gi]
+        c, r = cover_geometry(g.geometry, settings.max_excess, settings.mesh_spheres)
+        R, p = g.placement.rotation, g.placement.translation
+        centers.append(c @ R.T + p)
+        radii.append(r + settings.padding)
+        joints.append(np.full(len(r), g.parentJoint - 1))
+        geoms.append(np.full(len(r), gi))
+    return SphereModel(
+        centers=np.vstack(centers),
+        radii=np.concatenate(radii),
+        joints=np.concatenate(joints).astype(np.int64),
+        geometries=np.concatenate(geoms).astype(np.int64),
+    )

@@ -1,0 +1,1 @@
+"""Scenes with semantics: primitives, poses, classes, grasps, articulations, regions."""
