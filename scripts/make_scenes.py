@@ -112,7 +112,8 @@ def shelf_boxes() -> dict[str, Any]:
                                                         round(z + 0.095, 4)],
                         "size": [depth, width, 0.17], "weight": 2.0})
     return {"name": "shelf_boxes",
-            "description": "A 7-level shelf with boxes on each level (narrow gaps: the hard scene).",
+            "description": "A 7-level shelf with boxes on each level "
+                           "(narrow gaps: the hard scene).",
             "robot": "baxter_left", "base_pose": BASE, "objects": objs, "regions": regions}
 
 
@@ -138,8 +139,8 @@ def kitchen(xml_path: Path) -> dict[str, Any]:
             xyz = [float(v) for v in (g.findtext("translation") or "").split()]
             quat = [float(v) for v in (g.findtext("quat") or "1 0 0 0").split()]
             name = str(kb.get("name")) + (f"_{gi}" if len(geoms) > 1 else "")
-            cls = next(c for key, c in KITCHEN_CLASSES if key in name or key == "table" and
-                       name.startswith("table"))
+            cls = next(c for key, c in KITCHEN_CLASSES if key in name or (key == "table" and
+                       name.startswith("table")))
             d: dict[str, Any] = {"name": name, "class": cls, "shape": "box",
                                  "size": [round(2 * e, 6) for e in ext],
                                  "pose": {"xyz": xyz, "quat": quat}}

@@ -11,7 +11,7 @@ Array = NDArray[np.float64]
 
 
 def rpy_to_matrix(rpy: Sequence[float]) -> Array:
-    """Rotation from roll-pitch-yaw (URDF convention: R = Rz(yaw) Ry(pitch) Rx(roll)), shape (3, 3)."""
+    """Rotation (3, 3) from roll-pitch-yaw, URDF convention R = Rz(yaw) Ry(pitch) Rx(roll)."""
     r, p, y = (float(v) for v in rpy)
     cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
     return np.array(

@@ -75,7 +75,8 @@ class RobotDescription:
         known = {f for f in cls.__dataclass_fields__}
         unknown = set(d) - known
         if unknown:
-            raise RobotError(f"{source}: unknown field(s) {sorted(unknown)}; known: {sorted(known)}")
+            raise RobotError(
+                f"{source}: unknown field(s) {sorted(unknown)}; known: {sorted(known)}")
         for req in ("name", "urdf", "group_joints", "ee_frame"):
             if req not in d:
                 raise RobotError(f"{source}: missing field '{req}'")

@@ -113,7 +113,7 @@ class Robot:
     def within_limits(self, Q: Array, tol: float = 1e-9) -> NDArray[np.bool_]:
         """Whether each row of Q (N, K) lies within the joint limits."""
         Q = np.atleast_2d(Q)
-        return np.all((Q >= self.lower - tol) & (Q <= self.upper + tol), axis=1)
+        return np.all((self.lower - tol <= Q) & (self.upper + tol >= Q), axis=1)
 
     def sample_uniform(self, rng: np.random.Generator, n: int) -> Array:
         """n configurations drawn uniformly within the joint limits, shape (n, K)."""
@@ -163,10 +163,19 @@ class Robot:
             return int(self.model.getFrameId(frame))
         return int(frame)
 
+    @cached_property
+    def reach(self) -> tuple[Array, float]:
+        """(origin of the first group joint in the world, an upper bound on how far the
+        end-effector frame gets from it, m)."""
+        base = self.compute_joint_placements(np.zeros(self.dof))[0][:3, 3]
+        Q = self.sample_uniform(np.random.default_rng(0), 2000)
+        d = np.linalg.norm(self.compute_ee_poses(Q)[:, :3, 3] - base, axis=1)
+        return base, float(d.max() * 1.05 + 0.02)
+
     # --- collision structure ------------------------------------------------------------
     def geometry_link(self, index: int) -> str:
         """Name of the link that carries collision geometry ``index``."""
-        g = self.collision_model.geometryObjects[index]
+        g = self.collision_model.geometryObjects[int(index)]
         return str(self.model.frames[g.parentFrame].name)
 
     @cached_property

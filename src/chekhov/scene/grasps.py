@@ -36,7 +36,8 @@ def generate_grasps(shape: Shape, approaches: tuple[str, ...], standoff: float, 
                     ) -> list[Grasp]:
     """One grasp per approach: the gripper enters ``depth`` m past the face it approaches.
 
-    Faces: ``top`` (from +z), ``bottom`` (from -z), ``front`` (from -x, moving +x), ``back``, ``left`` (from +y),
+    Faces: ``top`` (from +z), ``bottom`` (from -z), ``front`` (from -x, moving +x), ``back``,
+    ``left`` (from +y),
     ``right`` (from -y), all in the object's frame.
     """
     h = shape.half_extents

@@ -158,7 +158,8 @@ def _object(ctx: _Ctx, d: Any, index: int) -> SceneObject:
     if motion not in ("static", "dynamic"):
         raise ctx.fail("motion", f"expected 'static' or 'dynamic', got {motion!r}")
     obj = SceneObject(name, shape, _pose(ctx, "pose", d.get("pose")), cls, motion == "dynamic",
-                      _grasps(ctx, shape, d.get("grasps")), _articulation(ctx, d.get("articulation")))
+                      _grasps(ctx, shape, d.get("grasps")),
+                      _articulation(ctx, d.get("articulation")))
     ctx.where = ""
     return obj
 

@@ -1,0 +1,284 @@
+"""The fast checker: the robot as covering spheres against primitive obstacles, numba-compiled.
+
+Used by every planner. It is conservative by construction (the spheres contain the robot's
+collision geometry and meshes of fixed robot parts are replaced by boxes containing them), so it
+never calls a configuration free that the exact checker calls colliding.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from itertools import pairwise
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from chekhov.collision import kernels
+from chekhov.collision.grid import build_grid
+from chekhov.collision.primitives import Primitive, geometry_primitives, pack, shape_primitive
+from chekhov.errors import RobotError
+from chekhov.robot.robot import Robot
+from chekhov.robot.spheres import SphereModel, build_sphere_model
+from chekhov.scene.model import Scene, Shape
+
+Array = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+_FIXED_GRID_CACHE: dict[tuple, list] = {}
+_AXES = {"RX": (1.0, 0.0, 0.0), "RY": (0.0, 1.0, 0.0), "RZ": (0.0, 0.0, 1.0)}
+
+
+@dataclass(frozen=True)
+class Contacts:
+    """Sphere contacts within a margin at one configuration (C contacts).
+
+    Attributes:
+        sphere: sphere index (C,).
+        other: obstacle index (``kind`` 0: environment, 1: fixed robot part) or sphere (2).
+        kind: (C,) as above.
+        distance: signed surface distance (C,), metres, negative in penetration.
+        normal: unit world direction (C, 3) along which moving the sphere increases distance.
+        point: witness point on the sphere's surface, world (C, 3).
+    """
+
+    sphere: NDArray[np.int64]
+    other: NDArray[np.int64]
+    kind: NDArray[np.int64]
+    distance: Array
+    normal: Array
+    point: Array
+
+    def __len__(self) -> int:
+        return len(self.distance)
+
+
+def chain_arrays(robot: Robot) -> tuple[NDArray[np.int64], Array, Array, Array]:
+    """Parent index, placement (R, p) and axis of each group joint, for the kernels."""
+    m = robot.model
+    K = robot.dof
+    parent = np.array([m.parents[k] - 1 for k in range(1, K + 1)], dtype=np.int64)
+    R0 = np.array([m.jointPlacements[k].rotation for k in range(1, K + 1)])
+    p0 = np.array([m.jointPlacements[k].translation for k in range(1, K + 1)])
+    axes = []
+    for k in range(1, K + 1):
+        j = m.joints[k]
+        name = j.shortname()
+        if name.startswith("JointModelR") and name[-2:] in _AXES:
+            axes.append(_AXES[name[-2:]])
+        elif name == "JointModelRevoluteUnaligned":
+            axes.append(tuple(j.extract().axis))
+        else:
+            raise RobotError(f"fast checker: joint '{m.names[k]}' is {name}; only revolute "
+                             "joints are supported")
+    return parent, R0, p0, np.array(axes, dtype=float)
+
+
+class FastChecker:
+    """Batched collision checks of the robot's spheres against the scene's primitives.
+
+    Configurations are arrays of shape (K,) or (N, K) in radians. Obstacles from the scene
+    (static and dynamic) are named; dynamic ones can be added, moved and removed at run time
+    without rebuilding anything else. Static obstacles and fixed robot parts are compiled once
+    into distance grids (``grid_spacing`` m) that clear most spheres with one lookup.
+    """
+
+    def __init__(self, robot: Robot, scene: Scene | None = None,
+                 spheres: SphereModel | None = None, static_only: bool = False,
+                 grid_spacing: float = 0.02) -> None:
+        self.robot = robot
+        self.spheres = spheres if spheres is not None else build_sphere_model(robot)
+        sp = self.spheres
+        self._chain = chain_arrays(robot)
+        self._sphere_arrays = (sp.centers.astype(float), sp.radii.astype(float),
+                               sp.joints.astype(np.int64))
+        # one group per covered geometry, with a bounding sphere in its joint's frame
+        geoms = list(dict.fromkeys(sp.geometries.tolist()))
+        starts = [int(np.flatnonzero(sp.geometries == g)[0]) for g in geoms] + [len(sp)]
+        gc = np.array([sp.centers[a:b].mean(axis=0) for a, b in pairwise(starts)])
+        gr = np.array([np.max(np.linalg.norm(sp.centers[a:b] - gc[i], axis=1) + sp.radii[a:b])
+                       for i, (a, b) in enumerate(pairwise(starts))])
+        gj = np.array([sp.joints[a] for a in starts[:-1]], dtype=np.int64)
+        self._groups = (np.array(starts, dtype=np.int64), gc, gr, gj)
+        group_of = {g: i for i, g in enumerate(geoms)}
+        # fixed robot parts and self-collision pairs, from the robot's pair list
+        fixed: list[Primitive] = []
+        fixed_of: dict[int, list[int]] = {}
+        fixed_pairs, self_pairs = [], []
+        cm = robot.collision_model
+        for a, b in robot.self_collision_pairs:
+            if a in group_of and b in group_of:
+                self_pairs.append((group_of[a], group_of[b]))
+                continue
+            g, f = (a, b) if a in group_of else (b, a)
+            if f not in fixed_of:
+                go = cm.geometryObjects[f]
+                prims = geometry_primitives(go.geometry, go.placement.homogeneous)
+                fixed_of[f] = list(range(len(fixed), len(fixed) + len(prims)))
+                fixed += prims
+            fixed_pairs += [(group_of[g], i) for i in fixed_of[f]]
+        self.fixed_primitives = fixed
+        self._fixed = pack(fixed)
+        self._fixed_pairs = np.array(sorted(fixed_pairs), dtype=np.int64).reshape(-1, 2)
+        G = len(gr)
+        fstart = np.searchsorted(self._fixed_pairs[:, 0], np.arange(G + 1)).astype(np.int64)
+        self._fixed_csr = (fstart, self._fixed_pairs[:, 1].copy())
+        self._self_pairs = np.array(self_pairs, dtype=np.int64).reshape(-1, 2)
+        self._obstacles: dict[str, Primitive] = {}
+        self._dynamic: set[str] = set()
+        if scene is not None:
+            for o in scene.objects:
+                if o.dynamic and static_only:
+                    continue
+                self._obstacles[o.name] = shape_primitive(o.shape, o.T_world_obj())
+                if o.dynamic:
+                    self._dynamic.add(o.name)
+        self._static = pack([p for n, p in self._obstacles.items() if n not in self._dynamic])
+        self._build_grids(grid_spacing)
+        self._pack_env()
+
+    def _build_grids(self, h: float) -> None:
+        """Distance grids over the arm's reach: [0] static obstacles, then fixed robot parts."""
+        rng = np.random.default_rng(0)
+        sample = self.robot.sample_uniform(rng, 4000)
+        Rb, pb = np.empty((self.robot.dof, 3, 3)), np.empty((self.robot.dof, 3))
+        pts = np.empty((len(sample) * len(self.spheres), 3))
+        out = np.empty((len(self.spheres), 3))
+        for n, q in enumerate(sample):
+            kernels.chain_fk(q, *self._chain, Rb, pb)
+            kernels.transform_points(Rb, pb, self._sphere_arrays[2], self._sphere_arrays[0], out)
+            pts[n * len(out):(n + 1) * len(out)] = out
+        pad = float(self.spheres.radii.max()) + 0.15
+        lo = np.floor((pts.min(axis=0) - pad) * 10) / 10  # round so equal robots share grids
+        hi = np.ceil((pts.max(axis=0) + pad) * 10) / 10
+        h = max(h, float(np.cbrt(np.prod(hi - lo) / 4e6)))  # at most ~4 M cells a grid
+        # grid 0: static obstacles; then one grid per distinct set of fixed robot parts that
+        # a group is checked against (few sets: most groups share one). These depend on the
+        # robot alone and are cached for the process.
+        fstart, fidx = self._fixed_csr
+        sets: dict[tuple[int, ...], int] = {}
+        gfix = np.full(len(fstart) - 1, -1, dtype=np.int64)
+        for g in range(len(gfix)):
+            key = tuple(sorted(set(fidx[fstart[g]:fstart[g + 1]].tolist())))
+            if key:
+                gfix[g] = sets.setdefault(key, len(sets) + 1)
+        rkey = (self.robot.description, self.robot.T_world_base.tobytes(), lo.tobytes(),
+                hi.tobytes(), h)
+        if rkey not in _FIXED_GRID_CACHE:
+            _FIXED_GRID_CACHE.clear()  # keep one robot's grids at most
+            _FIXED_GRID_CACHE[rkey] = [
+                build_grid(lo, hi, h, pack([self.fixed_primitives[i] for i in key]))
+                for key in sets]
+        grids = [build_grid(lo, hi, h, self._static), *_FIXED_GRID_CACHE[rkey]]
+        self.grids = grids
+        self._grids = (grids[0].origin, grids[0].h, grids[0].delta,
+                       np.stack([g.values for g in grids]), gfix)
+
+    # --- obstacles ----------------------------------------------------------------------
+    def _pack_env(self) -> None:
+        self._env = pack(list(self._obstacles.values()))
+        self._dyn = pack([self._obstacles[n] for n in self._obstacles if n in self._dynamic])
+        self.obstacle_names = list(self._obstacles)
+
+    def add_obstacle(self, name: str, shape: Shape, T_world_obj: Array) -> None:
+        """Add a dynamic obstacle; nothing else is rebuilt."""
+        if name in self._obstacles:
+            raise KeyError(f"obstacle '{name}' already exists; use move_obstacle")
+        self._obstacles[name] = shape_primitive(shape, np.asarray(T_world_obj, dtype=float))
+        self._dynamic.add(name)
+        self._pack_env()
+
+    def move_obstacle(self, name: str, T_world_obj: Array) -> None:
+        """Move a dynamic obstacle to a new pose T_world_obj (4, 4)."""
+        if name not in self._dynamic:
+            raise KeyError(f"'{name}' is not a dynamic obstacle; dynamic: {self.dynamic_obstacles}")
+        old = self._obstacles[name]
+        self._obstacles[name] = Primitive(old.kind, np.asarray(T_world_obj, dtype=float), old.size)
+        self._pack_env()
+
+    def remove_obstacle(self, name: str) -> None:
+        """Remove a dynamic obstacle."""
+        if name not in self._dynamic:
+            raise KeyError(f"'{name}' is not a dynamic obstacle; dynamic: {self.dynamic_obstacles}")
+        del self._obstacles[name]
+        self._dynamic.discard(name)
+        self._pack_env()
+
+    @property
+    def dynamic_obstacles(self) -> list[str]:
+        return sorted(self._dynamic)
+
+    @property
+    def nbytes(self) -> int:
+        """Memory held by the distance grids (bytes)."""
+        return sum(g.nbytes for g in self.grids)
+
+    # --- checks -------------------------------------------------------------------------
+    def _args(self) -> tuple:
+        return (self._chain, self._sphere_arrays, self._groups, self._static, self._dyn,
+                self._fixed, self._fixed_csr, self._self_pairs, self._grids)
+
+    def _exact_args(self) -> tuple:
+        return (self._chain, self._sphere_arrays, self._groups, self._env, self._fixed,
+                self._fixed_pairs, self._self_pairs)
+
+    def _as_batch(self, Q: Array) -> Array:
+        Q = np.ascontiguousarray(np.atleast_2d(np.asarray(Q, dtype=float)))
+        if Q.ndim != 2 or Q.shape[1] != self.robot.dof:
+            raise RobotError(f"expected configurations of shape (N, {self.robot.dof}), "
+                             f"got {Q.shape}")
+        return Q
+
+    def valid(self, Q: Array) -> BoolArray:
+        """Collision-free flag for each configuration; Q (N, K) → (N,)."""
+        return kernels.valid_batch(self._as_batch(Q), *self._args())
+
+    def is_valid(self, q: Array) -> bool:
+        """Whether one configuration (K,) is collision-free."""
+        return bool(self.valid(q)[0])
+
+    def motions_valid(self, Q0: Array, Q1: Array, resolution: float = 0.02) -> BoolArray:
+        """Whether each straight motion Q0[i] → Q1[i] is free at every ``resolution`` (rad)
+        step of joint-space distance; end points are not checked."""
+        Q0, Q1 = self._as_batch(Q0), self._as_batch(Q1)
+        return kernels.motions_valid(Q0, Q1, float(resolution), *self._args())
+
+    def motion_valid(self, q0: Array, q1: Array, resolution: float = 0.02) -> bool:
+        """Whether the straight motion q0 → q1 and both end points are collision-free."""
+        return bool(self.valid(np.vstack([q0, q1])).all()
+                    and self.motions_valid(q0, q1, resolution)[0])
+
+    def path_valid(self, path: Array, resolution: float = 0.02) -> bool:
+        """Whether a waypoint path (T, K) is free at waypoints and along every segment."""
+        P = self._as_batch(path)
+        return bool(self.valid(P).all() and self.motions_valid(P[:-1], P[1:], resolution).all())
+
+    def min_distance(self, Q: Array) -> Array:
+        """Smallest signed distance (m) between the spheres and anything, per configuration."""
+        return kernels.min_distance_batch(self._as_batch(Q), *self._exact_args())
+
+    def contacts(self, q: Array, margin: float) -> Contacts:
+        """Per-sphere contacts closer than ``margin`` (m) at one configuration (K,)."""
+        q = self._as_batch(q)[0]
+        return Contacts(*kernels.sphere_contacts(q, float(margin), *self._exact_args()))
+
+    def sphere_centers(self, q: Array) -> Array:
+        """World centres of every sphere at q, shape (M, 3)."""
+        q = self._as_batch(q)[0]
+        Rb, pb = np.empty((self.robot.dof, 3, 3)), np.empty((self.robot.dof, 3))
+        kernels.chain_fk(q, *self._chain, Rb, pb)
+        out = np.empty((len(self.spheres), 3))
+        kernels.transform_points(Rb, pb, self._sphere_arrays[2], self._sphere_arrays[0], out)
+        return out
+
+    def joint_placements(self, q: Array) -> tuple[Array, Array]:
+        """World rotation (K, 3, 3) and origin (K, 3) of each group joint at q (numba FK)."""
+        q = self._as_batch(q)[0]
+        Rb, pb = np.empty((self.robot.dof, 3, 3)), np.empty((self.robot.dof, 3))
+        kernels.chain_fk(q, *self._chain, Rb, pb)
+        return Rb, pb
+
+
+def pinocchio_joint_placements(robot: Robot, q: Array) -> list[pin.SE3]:
+    """Reference for tests: pinocchio's world placement of each group joint."""
+    pin.forwardKinematics(robot.model, robot.data, np.asarray(q, dtype=float))
+    return [robot.data.oMi[k].copy() for k in range(1, robot.model.njoints)]

@@ -1,0 +1,397 @@
+"""Numba kernels of the fast checker: chain FK for spheres, sphere-primitive signed distances.
+
+Obstacle encoding (world frame): ``kind`` 0 sphere, 1 box, 2 cylinder (z axis); ``R`` (3, 3)
+and ``p`` (3,) its pose; ``size`` sphere (radius, 0, 0), box half extents, cylinder
+(radius, half length, 0). All lengths in metres.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+SPHERE, BOX, CYLINDER = 0, 1, 2
+
+
+@njit(cache=True)
+def chain_fk(q, parent, R0, p0, axis, R_out, p_out):  # pragma: no cover - compiled
+    """World pose of each revolute joint of a chain:
+    T_k = T_parent(k) · placement_k · Rot(axis_k, q_k). Writes R_out (K, 3, 3), p_out (K, 3)."""
+    Rq = np.empty((3, 3))
+    A = np.empty((3, 3))
+    for k in range(q.shape[0]):
+        c, s = np.cos(q[k]), np.sin(q[k])
+        x, y, z = axis[k, 0], axis[k, 1], axis[k, 2]
+        C = 1.0 - c
+        Rq[0, 0] = c + x * x * C
+        Rq[0, 1] = x * y * C - z * s
+        Rq[0, 2] = x * z * C + y * s
+        Rq[1, 0] = y * x * C + z * s
+        Rq[1, 1] = c + y * y * C
+        Rq[1, 2] = y * z * C - x * s
+        Rq[2, 0] = z * x * C - y * s
+        Rq[2, 1] = z * y * C + x * s
+        Rq[2, 2] = c + z * z * C
+        pk = parent[k]
+        if pk < 0:
+            for a in range(3):
+                p_out[k, a] = p0[k, a]
+                for b in range(3):
+                    A[a, b] = R0[k, a, b]
+        else:
+            for a in range(3):
+                p_out[k, a] = (R_out[pk, a, 0] * p0[k, 0] + R_out[pk, a, 1] * p0[k, 1]
+                               + R_out[pk, a, 2] * p0[k, 2] + p_out[pk, a])
+                for b in range(3):
+                    A[a, b] = (R_out[pk, a, 0] * R0[k, 0, b] + R_out[pk, a, 1] * R0[k, 1, b]
+                               + R_out[pk, a, 2] * R0[k, 2, b])
+        for a in range(3):
+            for b in range(3):
+                R_out[k, a, b] = A[a, 0] * Rq[0, b] + A[a, 1] * Rq[1, b] + A[a, 2] * Rq[2, b]
+
+
+@njit(cache=True)
+def transform_points(R, p, joint, local, out):  # pragma: no cover - compiled
+    """out[i] = R[joint[i]] @ local[i] + p[joint[i]]."""
+    for i in range(local.shape[0]):
+        j = joint[i]
+        for a in range(3):
+            out[i, a] = (R[j, a, 0] * local[i, 0] + R[j, a, 1] * local[i, 1]
+                         + R[j, a, 2] * local[i, 2] + p[j, a])
+
+
+@njit(cache=True)
+def signed_distance(kind, R, p, size, x):  # pragma: no cover - compiled
+    """Signed distance (m) from point x to the obstacle surface (negative inside)."""
+    d0 = x[0] - p[0]
+    d1 = x[1] - p[1]
+    d2 = x[2] - p[2]
+    l0 = R[0, 0] * d0 + R[1, 0] * d1 + R[2, 0] * d2
+    l1 = R[0, 1] * d0 + R[1, 1] * d1 + R[2, 1] * d2
+    l2 = R[0, 2] * d0 + R[1, 2] * d1 + R[2, 2] * d2
+    if kind == SPHERE:
+        return np.sqrt(l0 * l0 + l1 * l1 + l2 * l2) - size[0]
+    if kind == BOX:
+        q0 = abs(l0) - size[0]
+        q1 = abs(l1) - size[1]
+        q2 = abs(l2) - size[2]
+        o0 = max(q0, 0.0)
+        o1 = max(q1, 0.0)
+        o2 = max(q2, 0.0)
+        return np.sqrt(o0 * o0 + o1 * o1 + o2 * o2) + min(max(q0, max(q1, q2)), 0.0)
+    # cylinder
+    qr = np.sqrt(l0 * l0 + l1 * l1) - size[0]
+    qz = abs(l2) - size[1]
+    o0 = max(qr, 0.0)
+    o1 = max(qz, 0.0)
+    return np.sqrt(o0 * o0 + o1 * o1) + min(max(qr, qz), 0.0)
+
+
+@njit(cache=True)
+def signed_distance_normal(kind, R, p, size, x, n_out):  # pragma: no cover - compiled
+    """Signed distance like :func:`signed_distance`; n_out gets the unit world gradient
+    (the direction moving x away from the obstacle fastest)."""
+    d = x - p
+    l = R.T @ d
+    g = np.zeros(3)
+    if kind == SPHERE:
+        nl = np.sqrt(l[0] ** 2 + l[1] ** 2 + l[2] ** 2)
+        if nl > 1e-12:
+            g = l / nl
+        else:
+            g[2] = 1.0
+        sd = nl - size[0]
+    elif kind == BOX:
+        q = np.abs(l) - size[:3]
+        if q[0] > 0 or q[1] > 0 or q[2] > 0:
+            o = np.maximum(q, 0.0)
+            no = np.sqrt(o[0] ** 2 + o[1] ** 2 + o[2] ** 2)
+            for a in range(3):
+                g[a] = np.sign(l[a]) * o[a] / no
+            sd = no
+        else:
+            a = np.argmax(q)
+            g[a] = 1.0 if l[a] >= 0 else -1.0
+            sd = q[a]
+    else:
+        rr = np.sqrt(l[0] ** 2 + l[1] ** 2)
+        qr = rr - size[0]
+        qz = abs(l[2]) - size[1]
+        ur = np.zeros(3)
+        if rr > 1e-12:
+            ur[0] = l[0] / rr
+            ur[1] = l[1] / rr
+        else:
+            ur[0] = 1.0
+        uz = np.zeros(3)
+        uz[2] = 1.0 if l[2] >= 0 else -1.0
+        if qr > 0 and qz > 0:
+            no = np.sqrt(qr * qr + qz * qz)
+            g = (qr * ur + qz * uz) / no
+            sd = no
+        elif qr > qz:
+            g = ur
+            sd = qr
+        else:
+            g = uz
+            sd = qz
+    for a in range(3):
+        n_out[a] = R[a, 0] * g[0] + R[a, 1] * g[1] + R[a, 2] * g[2]
+    return sd
+
+
+@njit(cache=True)
+def grid_classify(origin, h, delta, values, c, r):  # pragma: no cover - compiled
+    """What a distance grid (see ``grid.py``) proves about sphere (c, r).
+
+    Returns 1 when the sphere touches nothing in the grid, -1 when it certainly overlaps a
+    primitive of the grid, 0 when undecided (near a surface or outside the grid). Stored value
+    q at the nearest voxel centre v bounds the distance: q·delta ≤ d(v) < (q + 1)·delta, and
+    |d(c) - d(v)| ≤ |c - v| (the distance field is 1-Lipschitz).
+    """
+    fi = (c[0] - origin[0]) / h
+    fj = (c[1] - origin[1]) / h
+    fk = (c[2] - origin[2]) / h
+    i = int(np.floor(fi + 0.5))
+    j = int(np.floor(fj + 0.5))
+    k = int(np.floor(fk + 0.5))
+    if i < 0 or j < 0 or k < 0 or i >= values.shape[0] or j >= values.shape[1] \
+            or k >= values.shape[2]:
+        return 0
+    e = h * np.sqrt((fi - i) ** 2 + (fj - j) ** 2 + (fk - k) ** 2) + 1e-9
+    q = values[i, j, k]
+    if q * delta - e >= r:
+        return 1
+    if q < 255 and (q + 1) * delta + e < r:
+        return -1
+    return 0
+
+
+@njit(cache=True)
+def _sphere_hits(kind, R, p, size, c, r):  # pragma: no cover - compiled
+    for o in range(kind.shape[0]):
+        if signed_distance(kind[o], R[o], p[o], size[o], c) < r:
+            return True
+    return False
+
+
+@njit(cache=True)
+def config_collides(q, chain, spheres, groups, static, dyn, fixed, fixed_csr, self_pairs,
+                    grids, Rb, pb, cw, gw):  # pragma: no cover - compiled
+    """True if configuration q collides (environment, fixed robot parts, or itself).
+
+    Each group (the spheres of one covered geometry) has a bounding sphere. Static obstacles and
+    fixed robot parts are first ruled out by their distance grids, group then sphere; only
+    spheres the grids cannot clear get exact sphere-primitive tests. Dynamic obstacles are
+    tested exactly, behind the group bounding sphere.
+    """
+    parent, R0, p0, axis = chain
+    sc, sr, sj = spheres
+    gstart, gc, gr, gj = groups
+    sk, sR, sp, ss = static
+    dk, dR, dp, ds = dyn
+    fk, fR, fp, fs = fixed
+    fstart, fidx = fixed_csr
+    origin, h, delta, V, gfix = grids
+    chain_fk(q, parent, R0, p0, axis, Rb, pb)
+    transform_points(Rb, pb, sj, sc, cw)
+    transform_points(Rb, pb, gj, gc, gw)
+    for g in range(gr.shape[0]):
+        env = grid_classify(origin, h, delta, V[0], gw[g], gr[g])
+        fg = gfix[g]
+        fix = 1 if fg < 0 else grid_classify(origin, h, delta, V[fg], gw[g], gr[g])
+        if env != 1 or fix != 1:
+            for s in range(gstart[g], gstart[g + 1]):
+                if env != 1:
+                    e = grid_classify(origin, h, delta, V[0], cw[s], sr[s])
+                    if e == -1 or (e == 0 and _sphere_hits(sk, sR, sp, ss, cw[s], sr[s])):
+                        return True
+                if fix != 1:
+                    f = grid_classify(origin, h, delta, V[fg], cw[s], sr[s])
+                    if f == -1:
+                        return True
+                    if f != 1:
+                        for ii in range(fstart[g], fstart[g + 1]):
+                            o = fidx[ii]
+                            if signed_distance(fk[o], fR[o], fp[o], fs[o], cw[s]) < sr[s]:
+                                return True
+        for o in range(dk.shape[0]):
+            if signed_distance(dk[o], dR[o], dp[o], ds[o], gw[g]) >= gr[g]:
+                continue
+            for s in range(gstart[g], gstart[g + 1]):
+                if signed_distance(dk[o], dR[o], dp[o], ds[o], cw[s]) < sr[s]:
+                    return True
+    for i in range(self_pairs.shape[0]):
+        a = self_pairs[i, 0]
+        b = self_pairs[i, 1]
+        x = gw[a, 0] - gw[b, 0]
+        y = gw[a, 1] - gw[b, 1]
+        z = gw[a, 2] - gw[b, 2]
+        if x * x + y * y + z * z >= (gr[a] + gr[b]) ** 2:
+            continue
+        for s in range(gstart[a], gstart[a + 1]):
+            for t in range(gstart[b], gstart[b + 1]):
+                x = cw[s, 0] - cw[t, 0]
+                y = cw[s, 1] - cw[t, 1]
+                z = cw[s, 2] - cw[t, 2]
+                if x * x + y * y + z * z < (sr[s] + sr[t]) ** 2:
+                    return True
+    return False
+
+
+@njit(cache=True)
+def valid_batch(Q, chain, spheres, groups, static, dyn, fixed, fixed_csr, self_pairs, grids
+                ):  # pragma: no cover - compiled
+    """Collision-free flag for each row of Q (N, K)."""
+    K = Q.shape[1]
+    Rb = np.empty((K, 3, 3))
+    pb = np.empty((K, 3))
+    cw = np.empty((spheres[0].shape[0], 3))
+    gw = np.empty((groups[1].shape[0], 3))
+    out = np.empty(Q.shape[0], dtype=np.bool_)
+    for i in range(Q.shape[0]):
+        out[i] = not config_collides(Q[i], chain, spheres, groups, static, dyn, fixed,
+                                     fixed_csr, self_pairs, grids, Rb, pb, cw, gw)
+    return out
+
+
+@njit(cache=True)
+def motions_valid(Q0, Q1, resolution, chain, spheres, groups, static, dyn, fixed, fixed_csr,
+                  self_pairs, grids):  # pragma: no cover - compiled
+    """Whether each straight joint-space motion Q0[i] -> Q1[i] is free at every interior step.
+
+    Steps are at most ``resolution`` (rad, joint-space Euclidean norm) apart and are visited in
+    bisection order so that collisions are found early. The end points are not checked.
+    """
+    K = Q0.shape[1]
+    Rb = np.empty((K, 3, 3))
+    pb = np.empty((K, 3))
+    cw = np.empty((spheres[0].shape[0], 3))
+    gw = np.empty((groups[1].shape[0], 3))
+    out = np.empty(Q0.shape[0], dtype=np.bool_)
+    q = np.empty(K)
+    for i in range(Q0.shape[0]):
+        d = Q1[i] - Q0[i]
+        n = int(np.ceil(np.sqrt(np.sum(d * d)) / resolution))
+        ok = True
+        # bisection (van der Corput) order over the interior points 1..n-1
+        step = 1
+        while step < n:
+            step *= 2
+        while step >= 1 and ok:
+            for k in range(step, n, 2 * step):
+                t = k / n
+                for a in range(K):
+                    q[a] = Q0[i, a] + t * d[a]
+                if config_collides(q, chain, spheres, groups, static, dyn, fixed, fixed_csr,
+                                   self_pairs, grids, Rb, pb, cw, gw):
+                    ok = False
+                    break
+            step //= 2
+        out[i] = ok
+    return out
+
+
+@njit(cache=True)
+def min_distance_batch(Q, chain, spheres, groups, env, fixed, fixed_pairs, self_pairs
+                       ):  # pragma: no cover - compiled
+    """Smallest signed distance (m) between any sphere and obstacle / other sphere, per row."""
+    K = Q.shape[1]
+    Rb = np.empty((K, 3, 3))
+    pb = np.empty((K, 3))
+    sc, sr, sj = spheres
+    gstart, gc, gr, gj = groups
+    ek, eR, ep, es = env
+    fk, fR, fp, fs = fixed
+    cw = np.empty((sc.shape[0], 3))
+    out = np.empty(Q.shape[0])
+    for i in range(Q.shape[0]):
+        chain_fk(Q[i], chain[0], chain[1], chain[2], chain[3], Rb, pb)
+        transform_points(Rb, pb, sj, sc, cw)
+        best = np.inf
+        for o in range(ek.shape[0]):
+            for s in range(sc.shape[0]):
+                best = min(best, signed_distance(ek[o], eR[o], ep[o], es[o], cw[s]) - sr[s])
+        for k in range(fixed_pairs.shape[0]):
+            g = fixed_pairs[k, 0]
+            o = fixed_pairs[k, 1]
+            for s in range(gstart[g], gstart[g + 1]):
+                best = min(best, signed_distance(fk[o], fR[o], fp[o], fs[o], cw[s]) - sr[s])
+        for k in range(self_pairs.shape[0]):
+            a = self_pairs[k, 0]
+            b = self_pairs[k, 1]
+            for s in range(gstart[a], gstart[a + 1]):
+                for t in range(gstart[b], gstart[b + 1]):
+                    dx = cw[s] - cw[t]
+                    best = min(best, np.sqrt(np.sum(dx * dx)) - sr[s] - sr[t])
+        out[i] = best
+    return out
+
+
+@njit(cache=True)
+def sphere_contacts(q, margin, chain, spheres, groups, env, fixed, fixed_pairs, self_pairs
+                    ):  # pragma: no cover - compiled
+    """Every sphere within ``margin`` of an obstacle or of another sphere, at q.
+
+    Returns (sphere (C,), other (C,), kind (C,), distance (C,), normal (C, 3), point (C, 3)):
+    ``kind`` 0 environment obstacle index, 1 fixed robot part index, 2 another sphere index;
+    ``distance`` the signed distance between the two surfaces (m); ``normal`` the unit world
+    direction that increases it when the sphere moves along it; ``point`` the sphere's witness
+    point on its surface (world).
+    """
+    K = q.shape[0]
+    Rb = np.empty((K, 3, 3))
+    pb = np.empty((K, 3))
+    sc, sr, sj = spheres
+    gstart, gc, gr, gj = groups
+    ek, eR, ep, es = env
+    fk, fR, fp, fs = fixed
+    S = sc.shape[0]
+    cw = np.empty((S, 3))
+    chain_fk(q, chain[0], chain[1], chain[2], chain[3], Rb, pb)
+    transform_points(Rb, pb, sj, sc, cw)
+    cap = S * ek.shape[0] + S * fixed_pairs.shape[0] + S * S
+    s_out = np.empty(cap, dtype=np.int64)
+    o_out = np.empty(cap, dtype=np.int64)
+    k_out = np.empty(cap, dtype=np.int64)
+    d_out = np.empty(cap)
+    n_out = np.empty((cap, 3))
+    nrm = np.empty(3)
+    n = 0
+    for o in range(ek.shape[0]):
+        for s in range(S):
+            d = signed_distance_normal(ek[o], eR[o], ep[o], es[o], cw[s], nrm) - sr[s]
+            if d < margin:
+                s_out[n], o_out[n], k_out[n], d_out[n] = s, o, 0, d
+                n_out[n] = nrm
+                n += 1
+    for i in range(fixed_pairs.shape[0]):
+        g = fixed_pairs[i, 0]
+        o = fixed_pairs[i, 1]
+        for s in range(gstart[g], gstart[g + 1]):
+            d = signed_distance_normal(fk[o], fR[o], fp[o], fs[o], cw[s], nrm) - sr[s]
+            if d < margin:
+                s_out[n], o_out[n], k_out[n], d_out[n] = s, o, 1, d
+                n_out[n] = nrm
+                n += 1
+    for i in range(self_pairs.shape[0]):
+        a = self_pairs[i, 0]
+        b = self_pairs[i, 1]
+        for s in range(gstart[a], gstart[a + 1]):
+            for t in range(gstart[b], gstart[b + 1]):
+                dx = cw[s] - cw[t]
+                nd = np.sqrt(np.sum(dx * dx))
+                d = nd - sr[s] - sr[t]
+                if d < margin:
+                    if nd > 1e-12:
+                        nrm[:] = dx / nd
+                    else:
+                        nrm[:] = 0.0
+                        nrm[2] = 1.0
+                    s_out[n], o_out[n], k_out[n], d_out[n] = s, t, 2, d
+                    n_out[n] = nrm
+                    n += 1
+    points = np.empty((n, 3))
+    for i in range(n):
+        points[i] = cw[s_out[i]] - sr[s_out[i]] * n_out[i]
+    return s_out[:n], o_out[:n], k_out[:n], d_out[:n], n_out[:n], points

@@ -1,0 +1,1 @@
+"""Pictures and (later) the interactive viewer."""

@@ -1,0 +1,151 @@
+"""Static pictures of a scene and the robot (collision geometry) with matplotlib."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import coal
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+import pinocchio as pin
+from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+from numpy.typing import NDArray
+
+from chekhov.robot.spheres import mesh_triangles
+from chekhov.world import World
+
+Array = NDArray[np.float64]
+CLASS_COLORS = {
+    "table": "#b08850", "pole": "#707070", "box": "#d9a441", "container": "#5f8fbf",
+    "shelf": "#a07850", "cabinet": "#9c8a70", "fridge": "#c8d0d8", "door": "#8aa0b0",
+    "drawer": "#8aa0b0", "wall": "#d8d0c0", "counter": "#a0a0a0", "sink": "#b0c0d0",
+    "appliance": "#909090", "handle": "#404040", "object": "#c0c0c0", "person": "#e06040",
+}
+DYNAMIC_COLOR = "#e05a2b"
+
+
+def _box_faces(half: Array, T: Array) -> list[Array]:
+    c = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * half
+    w = c @ T[:3, :3].T + T[:3, 3]
+    idx = [(0, 1, 3, 2), (4, 5, 7, 6), (0, 1, 5, 4), (2, 3, 7, 6), (0, 2, 6, 4), (1, 3, 7, 5)]
+    return [w[list(f)] for f in idx]
+
+
+def _cylinder_faces(r: float, half: float, T: Array, n: int = 20) -> list[Array]:
+    a = np.linspace(0, 2 * np.pi, n + 1)
+    ring = np.stack([r * np.cos(a), r * np.sin(a)], axis=1)
+    faces = []
+    for i in range(n):
+        quad = np.array([[*ring[i], -half], [*ring[i + 1], -half], [*ring[i + 1], half],
+                         [*ring[i], half]])
+        faces.append(quad)
+    for z in (-half, half):
+        faces.append(np.column_stack([ring, np.full(len(ring), z)]))
+    return [f @ T[:3, :3].T + T[:3, 3] for f in faces]
+
+
+def _sphere_faces(r: float, T: Array, n: int = 10) -> list[Array]:
+    u, v = np.linspace(0, 2 * np.pi, n + 1), np.linspace(0, np.pi, n // 2 + 1)
+    faces = []
+    for i in range(n):
+        for j in range(n // 2):
+            pts = [(u[i], v[j]), (u[i + 1], v[j]), (u[i + 1], v[j + 1]), (u[i], v[j + 1])]
+            faces.append(np.array([[r * np.cos(a) * np.sin(b), r * np.sin(a) * np.sin(b),
+                                    r * np.cos(b)] for a, b in pts]) + T[:3, 3])
+    return faces
+
+
+def shape_faces(kind: str, size: Array, T: Array) -> list[Array]:
+    """Polygons (world) of a primitive: kind box (half extents), cylinder (r, half length),
+    sphere (r)."""
+    if kind == "box":
+        return _box_faces(np.asarray(size), T)
+    if kind == "cylinder":
+        return _cylinder_faces(size[0], size[1], T)
+    return _sphere_faces(size[0], T)
+
+
+def geometry_faces(geometry: coal.CollisionGeometry, T: Array, max_triangles: int = 1500
+                   ) -> list[Array]:
+    if isinstance(geometry, coal.Box):
+        return shape_faces("box", np.asarray(geometry.halfSide), T)
+    if isinstance(geometry, coal.Cylinder):
+        return shape_faces("cylinder", np.array([geometry.radius, geometry.halfLength]), T)
+    if isinstance(geometry, coal.Sphere):
+        return shape_faces("sphere", np.array([geometry.radius]), T) if geometry.radius > 0.01 \
+            else []
+    if hasattr(geometry, "num_tris"):
+        tris = mesh_triangles(geometry)
+        step = max(1, len(tris) // max_triangles)
+        return list(tris[::step] @ T[:3, :3].T + T[:3, 3])
+    return []
+
+
+def robot_faces(world: World, q: Array) -> list[Array]:
+    robot = world.robot
+    gm = robot.collision_model
+    gd = pin.GeometryData(gm)
+    pin.updateGeometryPlacements(robot.model, robot.model.createData(), gm, gd,
+                                 np.asarray(q, dtype=float))
+    faces: list[Array] = []
+    for i, g in enumerate(gm.geometryObjects):
+        faces += geometry_faces(g.geometry, gd.oMg[i].homogeneous)
+    return faces
+
+
+def render_scene(world: World, q: Array | None = None, path: Array | None = None,
+                 out: str | Path = "scene.png", title: str | None = None,
+                 ghosts: int = 6, elev: float = 25.0, azim: float | None = None) -> Path:
+    """Write a PNG of the scene with the robot at q (default: the path's start) and, if a path
+    (T, K) is given, ghosts of the robot along it and the end-effector trace."""
+    fig = plt.figure(figsize=(8, 7), dpi=110)
+    ax = fig.add_subplot(projection="3d")
+    for o in world.scene.objects:
+        s = o.shape
+        size = s.half_extents if s.kind == "box" else (
+            np.array([s.size[0], s.size[1] / 2]) if s.kind == "cylinder" else np.array(s.size))
+        color = DYNAMIC_COLOR if o.dynamic else CLASS_COLORS.get(o.cls, "#c0c0c0")
+        ax.add_collection3d(Poly3DCollection(shape_faces(s.kind, size, o.T_world_obj()),
+                                             facecolor=color, edgecolor="#00000030",
+                                             linewidth=0.2, alpha=0.55 if o.dynamic else 0.8))
+    if path is not None:
+        P = np.atleast_2d(path)
+        idx = np.linspace(0, len(P) - 1, min(ghosts, len(P))).astype(int)
+        for k, i in enumerate(idx[1:], 1):
+            ax.add_collection3d(Poly3DCollection(robot_faces(world, P[i]), facecolor="#3070c0",
+                                                 alpha=0.08 + 0.2 * k / len(idx), linewidth=0))
+        ee = world.robot.compute_ee_poses(P)[:, :3, 3]
+        ax.plot(ee[:, 0], ee[:, 1], ee[:, 2], color="#c02020", linewidth=2)
+        q = P[0] if q is None else q
+    if q is not None:
+        ax.add_collection3d(Poly3DCollection(robot_faces(world, q), facecolor="#d8dde3",
+                                             edgecolor="#30303040", linewidth=0.1, alpha=0.9))
+    lo = np.array([-0.6, -0.9, 0.0])
+    hi = np.array([1.4, 1.3, 2.0])
+    base = world.robot.T_world_base[:3, 3]
+    if np.linalg.norm(base[:2]) > 0.5:  # centre the view on the robot's workspace
+        fwd = world.robot.T_world_base[:3, 0]
+        c = base + 0.5 * fwd
+        lo, hi = np.array([c[0] - 1.1, c[1] - 1.1, 0.0]), np.array([c[0] + 1.1, c[1] + 1.1, 2.0])
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_zlim(lo[2], hi[2])
+    ax.set_box_aspect(hi - lo)
+    if azim is None:  # look over the robot's shoulder
+        Rb = world.robot.T_world_base[:3, :3]
+        azim = float(np.degrees(np.arctan2(Rb[1, 0], Rb[0, 0]))) - 140.0
+    ax.view_init(elev=elev, azim=azim)
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_zlabel("z (m)")
+    ax.set_title(title or world.scene.name)
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(f".{out.name}.tmp.png")
+    fig.savefig(tmp, bbox_inches="tight")
+    plt.close(fig)
+    tmp.replace(out)
+    return out

@@ -1,0 +1,24 @@
+import numpy as np
+import pytest
+
+from chekhov.world import World
+
+
+@pytest.fixture(scope="session")
+def worlds() -> dict[str, World]:
+    """One World per built-in scene, shared by the whole session (grids are built once)."""
+    return {}
+
+
+@pytest.fixture(scope="session")
+def world_of(worlds):
+    def get(name: str) -> World:
+        if name not in worlds:
+            worlds[name] = World.load(name)
+        return worlds[name]
+    return get
+
+
+@pytest.fixture()
+def rng() -> np.random.Generator:
+    return np.random.default_rng(1234)

@@ -1,0 +1,142 @@
+"""The fast checker against the exact one, and the checkers' behaviour."""
+
+import numpy as np
+import pytest
+
+from chekhov import Shape
+from chekhov.collision.exact import densify
+from chekhov.collision.fast import pinocchio_joint_placements
+
+SCENES = ["tabletop_pole", "tabletop_container", "kitchen", "shelf_boxes"]
+
+
+def test_numba_fk_matches_pinocchio(world_of, rng):
+    w = world_of("kitchen")
+    for q in w.robot.sample_uniform(rng, 10):
+        R, p = w.fast.joint_placements(q)
+        for k, M in enumerate(pinocchio_joint_placements(w.robot, q)):
+            assert np.allclose(R[k], M.rotation, atol=1e-12)
+            assert np.allclose(p[k], M.translation, atol=1e-12)
+
+
+@pytest.mark.parametrize("scene", SCENES)
+def test_fast_never_says_free_where_exact_says_collision(world_of, scene):
+    """100 000 random configurations per scene: every one the fast checker calls free is free
+    for the exact checker."""
+    w = world_of(scene)
+    Q = w.robot.sample_uniform(np.random.default_rng(hash(scene) % 2**32), 100_000)
+    free = w.fast.valid(Q)
+    exact_free = w.exact.valid(Q[free])
+    missed = int(np.sum(~exact_free))
+    assert missed == 0, f"{scene}: fast said free, exact said collision for {missed} configs"
+    assert 0.2 < free.mean() < 0.9
+
+
+def test_batched_equals_looped(world_of, rng):
+    w = world_of("shelf_boxes")
+    Q = w.robot.sample_uniform(rng, 300)
+    batch = w.fast.valid(Q)
+    assert np.array_equal(batch, np.array([w.fast.is_valid(q) for q in Q]))
+
+
+def test_min_distance_agrees_with_validity(world_of, rng):
+    w = world_of("tabletop_pole")
+    Q = w.robot.sample_uniform(rng, 2000)
+    d = w.fast.min_distance(Q)
+    v = w.fast.valid(Q)
+    clear = np.abs(d) > 1e-6
+    assert np.array_equal(v[clear], d[clear] > 0)
+
+
+def test_contacts_normals_match_finite_differences(world_of, rng):
+    w = world_of("tabletop_pole")
+    fast = w.fast
+    q = None
+    for cand in w.robot.sample_uniform(rng, 500):
+        c = fast.contacts(cand, 0.05)
+        if len(c) and np.any(c.kind == 0):
+            q = cand
+            break
+    assert q is not None
+    c = fast.contacts(q, 0.05)
+    centers = fast.sphere_centers(q)
+    from chekhov.collision import kernels
+
+    env = fast._env
+    for i in np.flatnonzero(c.kind == 0)[:10]:
+        s, o = c.sphere[i], c.other[i]
+        x = centers[s]
+        eps = 1e-6
+        grad = np.array([(kernels.signed_distance(env[0][o], env[1][o], env[2][o], env[3][o],
+                                                  x + eps * e)
+                          - kernels.signed_distance(env[0][o], env[1][o], env[2][o], env[3][o],
+                                                    x - eps * e)) / (2 * eps)
+                         for e in np.eye(3)])
+        assert np.allclose(grad, c.normal[i], atol=1e-4)
+        assert np.allclose(c.point[i], x - fast.spheres.radii[s] * c.normal[i])
+
+
+def test_motion_validity_matches_dense_sampling(world_of, rng):
+    w = world_of("tabletop_container")
+    Q0 = w.robot.sample_uniform(rng, 200)
+    Q1 = np.clip(Q0 + rng.normal(scale=0.3, size=Q0.shape), w.robot.lower, w.robot.upper)
+    res = 0.02
+    ok = w.fast.motions_valid(Q0, Q1, res)
+    for i in range(0, 200, 10):
+        n = int(np.ceil(np.linalg.norm(Q1[i] - Q0[i]) / res))
+        interior = Q0[i] + (np.arange(1, n) / n)[:, None] * (Q1[i] - Q0[i])
+        assert ok[i] == bool(w.fast.valid(interior).all() if len(interior) else True)
+
+
+def test_dynamic_obstacles_add_move_remove(world_of):
+    w = world_of("tabletop_pole")
+    q = np.array([0.0, -0.3, 0.0, 0.8, 0.0, 0.8, 0.0])
+    assert w.fast.is_valid(q) and w.exact.is_valid(q)
+    ee = w.robot.compute_ee_pose(q)[:3, 3]
+    T = np.eye(4)
+    T[:3, 3] = ee
+    ball = Shape("sphere", (0.08,))
+    w.add_obstacle("ball", ball, T)
+    try:
+        assert not w.fast.is_valid(q) and not w.exact.is_valid(q)
+        T2 = T.copy()
+        T2[2, 3] += 1.5
+        w.move_obstacle("ball", T2)
+        assert w.fast.is_valid(q) and w.exact.is_valid(q)
+        w.move_obstacle("ball", T)
+        assert not w.fast.is_valid(q)
+    finally:
+        w.remove_obstacle("ball")
+    assert w.fast.is_valid(q) and w.exact.is_valid(q)
+    with pytest.raises(KeyError):
+        w.fast.move_obstacle("tabletop", T)
+
+
+def test_exact_path_check_finds_collision_between_waypoints(world_of):
+    w = world_of("tabletop_pole")
+    # two free configurations either side of the pole, the straight line sweeps through it
+    pole = w.scene.object("pole").pose.xyz
+    Q = w.robot.sample_uniform(np.random.default_rng(7), 20000)
+    ee = w.robot.compute_ee_poses(Q)[:, :3, 3]
+    free = w.fast.valid(Q)
+    near = free & (np.abs(ee[:, 2] - 1.0) < 0.1) & (np.abs(ee[:, 0] - pole[0]) < 0.05)
+    left = np.flatnonzero(near & (ee[:, 1] > pole[1] + 0.12))
+    right = np.flatnonzero(near & (ee[:, 1] < pole[1] - 0.12))
+    found = False
+    for a in left[:20]:
+        for b in right[:20]:
+            path = np.vstack([Q[a], Q[b]])
+            if not w.exact.path_valid(path, substeps=100):
+                assert not w.fast.path_valid(path)
+                found = True
+                break
+        if found:
+            break
+    assert found
+
+
+def test_densify_shape_and_endpoints():
+    P = np.arange(21, dtype=float).reshape(3, 7)
+    D = densify(P, 100)
+    assert D.shape == (2 * 101 + 1, 7)
+    assert np.allclose(D[0], P[0]) and np.allclose(D[101], P[1]) and np.allclose(D[-1], P[2])
