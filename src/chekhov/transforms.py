@@ -63,7 +63,8 @@ def matrix_to_quat(R: Array) -> Array:
     return q if q[0] >= 0 else -q
 
 
-def make_transform(xyz: Sequence[float] = (0.0, 0.0, 0.0), R: Array | None = None) -> Array:
+def make_transform(xyz: Sequence[float] | Array = (0.0, 0.0, 0.0), R: Array | None = None
+                   ) -> Array:
     """Homogeneous transform of shape (4, 4) from a translation (m) and a rotation (3, 3)."""
     T = np.eye(4)
     if R is not None:

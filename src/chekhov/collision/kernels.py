@@ -110,9 +110,9 @@ def signed_distance_normal(kind, R, p, size, x, n_out):  # pragma: no cover - co
                 g[a] = np.sign(l[a]) * o[a] / no
             sd = no
         else:
-            a = np.argmax(q)
-            g[a] = 1.0 if l[a] >= 0 else -1.0
-            sd = q[a]
+            m = int(np.argmax(q))
+            g[m] = 1.0 if l[m] >= 0 else -1.0
+            sd = q[m]
     else:
         rr = np.sqrt(l[0] ** 2 + l[1] ** 2)
         qr = rr - size[0]

@@ -47,7 +47,8 @@ class _Ctx:
         return SceneError(f"{self.source}:{self.where} field '{field}': {msg}")
 
 
-def _numbers(ctx: _Ctx, field: str, v: Any, n: int, positive: bool = False) -> tuple[float, ...]:
+def _numbers(ctx: _Ctx, field: str, v: Any, n: int, positive: bool = False) -> Any:
+    """n finite floats as a tuple (typed Any: callers know n)."""
     ok = isinstance(v, list | tuple) and len(v) == n
     if ok:
         try:
