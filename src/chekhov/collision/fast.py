@@ -263,9 +263,7 @@ class FastChecker:
 
     def sphere_centers(self, q: Array) -> Array:
         """World centres of every sphere at q, shape (M, 3)."""
-        q = self._as_batch(q)[0]
-        Rb, pb = np.empty((self.robot.dof, 3, 3)), np.empty((self.robot.dof, 3))
-        kernels.chain_fk(q, *self._chain, Rb, pb)
+        Rb, pb = self.joint_placements(q)
         out = np.empty((len(self.spheres), 3))
         kernels.transform_points(Rb, pb, self._sphere_arrays[2], self._sphere_arrays[0], out)
         return out
