@@ -1,15 +1,8 @@
-"""The ``chekhov`` command line.
-
-    chekhov scenes                         list the built-in scenes
-    chekhov show SCENE [--q Q...] [--out scene.png]
-                                           picture of a scene with the robot at q
-    chekhov demo [--out DIR]               the main job (see README)
-"""
+"""Scene commands: ``chekhov scenes``, ``chekhov show``, ``chekhov demo``."""
 
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from pathlib import Path
 
@@ -86,9 +79,8 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     return 0
 
 
-def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="chekhov", description="Fast, reactive motion planning.")
-    sub = ap.add_subparsers(dest="command", required=True)
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the scene commands to the top-level parser."""
     sub.add_parser("scenes", help="list the built-in scenes").set_defaults(func=_cmd_scenes)
     p = sub.add_parser("show", help="write a picture of a scene with the robot")
     p.add_argument("scene", help="built-in scene name or scene YAML file")
@@ -98,17 +90,3 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("demo", help="main job: scenes, IK to every pre-grasp, checks, pictures")
     p.add_argument("--out", default="out/demo", help="folder for the pictures")
     p.set_defaults(func=_cmd_demo)
-    return ap
-
-
-def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    try:
-        return int(args.func(args))
-    except ChekhovError as e:
-        print(f"chekhov: error: {e}", file=sys.stderr)
-        return 2
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -1,0 +1,5 @@
+import sys
+
+from chekhov.cli import main
+
+sys.exit(main())
