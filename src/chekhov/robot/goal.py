@@ -1,0 +1,66 @@
+"""A planning goal: an end-effector pose with tolerances, or a joint configuration."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from chekhov.errors import RobotError
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class Goal:
+    """Where the arm must end.
+
+    Exactly one of ``T_world_ee`` (4, 4), the end-effector frame's pose in the world, or ``q``
+    (K,), a joint configuration in radians, is set. Build with :meth:`pose` or
+    :meth:`configuration`.
+
+    Attributes:
+        position_tolerance: m, allowed end-effector position error (pose goals).
+        orientation_tolerance: rad, allowed end-effector rotation error (pose goals).
+    """
+
+    T_world_ee: Array | None = None
+    q: Array | None = None
+    position_tolerance: float = 0.005
+    orientation_tolerance: float = 0.05
+
+    def __post_init__(self) -> None:
+        if (self.T_world_ee is None) == (self.q is None):
+            raise RobotError("goal: give exactly one of an end-effector pose or a configuration")
+        if self.T_world_ee is not None:
+            T = np.asarray(self.T_world_ee, dtype=float)
+            if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+                raise RobotError(f"goal pose must be a finite 4x4 matrix, got shape {T.shape}")
+            R = T[:3, :3]
+            if not np.allclose(R @ R.T, np.eye(3), atol=1e-6):
+                raise RobotError("goal pose: the rotation block is not orthonormal")
+            object.__setattr__(self, "T_world_ee", T)
+        if self.q is not None:
+            q = np.asarray(self.q, dtype=float)
+            if q.ndim != 1 or not np.all(np.isfinite(q)):
+                raise RobotError(f"goal configuration must be a finite vector, got {q}")
+            object.__setattr__(self, "q", q)
+        if self.position_tolerance < 0 or self.orientation_tolerance < 0:
+            raise RobotError("goal tolerances must be non-negative")
+
+    @classmethod
+    def pose(cls, T_world_ee: Array, position_tolerance: float = 0.005,
+             orientation_tolerance: float = 0.05) -> Goal:
+        """A goal end-effector pose T_world_ee (4, 4)."""
+        return cls(T_world_ee=T_world_ee, position_tolerance=position_tolerance,
+                   orientation_tolerance=orientation_tolerance)
+
+    @classmethod
+    def configuration(cls, q: Array) -> Goal:
+        """A goal joint configuration q (K,), rad."""
+        return cls(q=q)
+
+    @property
+    def is_pose(self) -> bool:
+        return self.T_world_ee is not None
