@@ -78,7 +78,8 @@ class FastChecker:
 
     Configurations are arrays of shape (K,) or (N, K) in radians. Obstacles from the scene
     (static and dynamic) are named; dynamic ones can be added, moved and removed at run time
-    without rebuilding anything else. Static obstacles and fixed robot parts are compiled once
+    without rebuilding anything else; ``obstacles_version`` counts those changes, so callers
+    can tell when cached validity results went stale. Static obstacles and fixed robot parts are compiled once
     into distance grids (``grid_spacing`` m) that clear most spheres with one lookup.
     """
 
@@ -175,6 +176,7 @@ class FastChecker:
 
     # --- obstacles ----------------------------------------------------------------------
     def _pack_env(self) -> None:
+        self.obstacles_version = getattr(self, "obstacles_version", -1) + 1
         self._env = pack(list(self._obstacles.values()))
         self._dyn = pack([self._obstacles[n] for n in self._obstacles if n in self._dynamic])
         self.obstacle_names = list(self._obstacles)
