@@ -1,0 +1,222 @@
+"""OMPL's RRTConnect, RRT, RRT* and PRM* (PyPI ``ompl`` bindings) on our fast checker.
+
+How each is configured (the same for all four, apart from the objective):
+
+* State space: ``RealVectorStateSpace(K)`` bounded by the joint limits; OMPL's Euclidean
+  joint-space metric (rad), the same metric as our path length and motion resolution.
+* State validity: ``FastChecker.valid`` (numba) on the state.
+* Motions: a custom ``MotionValidator`` — the end state with ``FastChecker.valid`` and the
+  interior with ``FastChecker.motions_valid(q0, q1, resolution)`` (one numba call per motion,
+  every ``resolution`` rad of joint-space distance) — the same check and resolution as every
+  other planner here. OMPL's own validity-checking resolution is set to the same step.
+* Goal: ``GoalStates`` holding up to ``n_ik`` collision-free IK solutions of the goal pose
+  (``World.solve_ik``); a path ends exactly at one of them.
+* Planner parameters: OMPL's defaults, nothing changed — range 0.2 × the space's maximum extent
+  (RRT, RRTConnect, RRT*), goal bias 0.05 (RRT, RRT*), RRT* rewiring factor 1.1 with
+  k-nearest rewiring, PRM* with its k* connection strategy.
+* RRT* and PRM* optimise path length (``PathLengthOptimizationObjective``) with no cost
+  threshold, so they **run to their time limit**, as in the paper; RRT and RRTConnect stop at
+  the first exact solution.
+* ``simplify=False`` (default): the planner's path as it comes; ``True``: OMPL's
+  ``PathSimplifier.simplify`` (shortcutting, vertex reduction, B-spline smoothing under the same
+  motion check) for at most ``simplify_time_s``, timed separately.
+
+``time_limit_s`` bounds the whole ``plan`` call: IK first, then the planner gets the rest.
+Approximate solutions count as failures ("timeout").
+
+PRM* and several goals: OMPL's PRM checks for solutions in a second C++ thread which, with
+several goal states, calls the Python validity checker while ``solve`` holds the GIL — a
+deadlock in these bindings. We therefore add the goal states as milestones from the calling
+thread first (one zero-time ``solve`` per extra goal, counted in the planning time) so that the
+solution thread never calls back into Python.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from chekhov.errors import ChekhovError, IKError
+from chekhov.planners.base import PlanResult
+from chekhov.planners.lazy_prm import goal_configurations
+from chekhov.robot.goal import Goal
+from chekhov.world import World
+
+Array = NDArray[np.float64]
+
+PLANNERS = ("RRTConnect", "RRT", "RRTstar", "PRMstar")
+_ALIASES = {"rrtconnect": "RRTConnect", "rrt": "RRT", "rrtstar": "RRTstar", "rrt*": "RRTstar",
+            "prmstar": "PRMstar", "prm*": "PRMstar"}
+OPTIMAL = frozenset({"RRTstar", "PRMstar"})
+
+
+def _ompl() -> tuple[Any, Any, Any]:
+    try:
+        from ompl import base as ob
+        from ompl import geometric as og
+        from ompl import util as ou
+    except ImportError as e:  # pragma: no cover - ompl is a dependency
+        raise ChekhovError("OMPL planners need the PyPI package 'ompl' (pip install ompl)") from e
+    return ob, og, ou
+
+
+class OmplPlanner:
+    """One OMPL planner (``planner`` in RRTConnect, RRT, RRTstar, PRMstar) for one world.
+
+    Args:
+        world: the planning world (fast checker, robot, IK).
+        planner: OMPL planner name (case-insensitive; "RRT*", "PRM*" accepted).
+        resolution: rad, joint-space step of motion checks.
+        simplify: post-process the path with OMPL's PathSimplifier.
+        simplify_time_s: s, most time spent simplifying.
+        n_ik: IK solutions of the goal pose used as goal states.
+        seed: seeds the IK restarts (OMPL's own sampler is seeded by OMPL).
+    """
+
+    def __init__(self, world: World, planner: str = "RRTConnect", *, resolution: float = 0.02,
+                 simplify: bool = False, simplify_time_s: float = 1.0, n_ik: int = 4,
+                 seed: int | None = None) -> None:
+        kind = _ALIASES.get(planner.lower())
+        if kind is None:
+            raise ChekhovError(f"unknown OMPL planner '{planner}'; available: {list(PLANNERS)}")
+        if resolution <= 0:
+            raise ChekhovError(f"resolution must be positive, got {resolution}")
+        ob, og, ou = _ompl()
+        ou.setLogLevel(ou.LOG_WARN)
+        self.world = world
+        self.kind = kind
+        self.name = kind + ("+simplify" if simplify else "")
+        self.resolution = float(resolution)
+        self.simplify = simplify
+        self.simplify_time_s = float(simplify_time_s)
+        self.n_ik = int(n_ik)
+        self.rng = np.random.default_rng(seed)
+        self._ob, self._og = ob, og
+        self.counts = {"state_checks": 0, "motion_checks": 0}
+        K = world.robot.dof
+        self.dof = K
+        space = ob.RealVectorStateSpace(K)
+        bounds = ob.RealVectorBounds(K)
+        for i in range(K):
+            bounds.setLow(i, float(world.robot.lower[i]))
+            bounds.setHigh(i, float(world.robot.upper[i]))
+        space.setBounds(bounds)
+        si = ob.SpaceInformation(space)
+        fast = world.fast
+        counts = self.counts
+
+        def state_valid(s: Any) -> bool:
+            counts["state_checks"] += 1
+            return bool(fast.valid(np.array(s[0:K]))[0])
+
+        res = self.resolution
+
+        class _MotionValidator(ob.MotionValidator):  # type: ignore[name-defined]
+            def checkMotion(self, s1: Any, s2: Any, *rest: Any) -> bool:
+                counts["motion_checks"] += 1
+                q1 = np.array(s2[0:K])
+                if not fast.valid(q1)[0]:
+                    return False
+                return bool(fast.motions_valid(np.array(s1[0:K]), q1, res)[0])
+
+        si.setStateValidityChecker(state_valid)
+        self._mv = _MotionValidator(si)          # kept alive: OMPL holds a raw reference
+        si.setMotionValidator(self._mv)
+        si.setStateValidityCheckingResolution(min(1.0, res / space.getMaximumExtent()))
+        si.setup()
+        self._state_valid = state_valid
+        self.si = si
+        self.space = space
+
+    # --- helpers ------------------------------------------------------------------------
+    def _state(self, q: Array) -> Any:
+        s = self.si.allocState()
+        for i, v in enumerate(np.asarray(q, dtype=float)):
+            s[i] = float(v)
+        return s
+
+    def _path_array(self, path: Any) -> Array:
+        K = self.dof
+        return np.array([path.getState(i)[0:K] for i in range(path.getStateCount())],
+                        dtype=float).reshape(-1, K)
+
+    def describe(self) -> dict[str, object]:
+        """How the planner is configured (for reports)."""
+        p = self._make_planner()
+        p.setProblemDefinition(self._ob.ProblemDefinition(self.si))
+        p.setup()   # resolves OMPL's defaults (e.g. range from the space's extent)
+        d: dict[str, object] = {"planner": self.kind, "resolution": self.resolution,
+                                "simplify": self.simplify, "n_ik": self.n_ik,
+                                "optimal": self.kind in OPTIMAL}
+        for attr in ("getRange", "getGoalBias", "getRewireFactor"):
+            if hasattr(p, attr):
+                d[attr[3:].lower()] = float(getattr(p, attr)())
+        return d
+
+    def _make_planner(self) -> Any:
+        return getattr(self._og, self.kind)(self.si)
+
+    # --- planning -----------------------------------------------------------------------
+    def plan(self, q_start: Array, goal: Goal, time_limit_s: float = 10.0) -> PlanResult:
+        """Plan from q_start (K,) rad to the goal within time_limit_s (s, IK included)."""
+        ob = self._ob
+        t0 = time.perf_counter()
+        robot = self.world.robot
+        q_start = robot.check_configuration(q_start, "start configuration")
+        timing: dict[str, float] = {}
+        info: dict[str, object] = {"planner": self.kind}
+        c0 = dict(self.counts)
+
+        def done(status: str, path: Array | None = None) -> PlanResult:
+            info.update({k: self.counts[k] - c0[k] for k in self.counts})
+            return PlanResult(path is not None, path, status, time.perf_counter() - t0,
+                              timing, info=info)
+
+        try:
+            goals = goal_configurations(self.world, goal, self.n_ik, self.rng)
+        except IKError as e:
+            timing["ik"] = time.perf_counter() - t0
+            info["error"] = str(e)
+            return done("no_ik")
+        timing["ik"] = time.perf_counter() - t0
+        info["ik_solutions"] = len(goals)
+        if not (robot.within_limits(q_start)[0] and self.world.fast.is_valid(q_start)):
+            return done("invalid_start")
+        t = time.perf_counter()
+        pdef = ob.ProblemDefinition(self.si)
+        pdef.addStartState(self._state(q_start))
+        gs = ob.GoalStates(self.si)
+        for q in goals:
+            gs.addState(self._state(q))
+        pdef.setGoal(gs)
+        if self.kind in OPTIMAL:
+            pdef.setOptimizationObjective(ob.PathLengthOptimizationObjective(self.si))
+        planner = self._make_planner()
+        planner.setProblemDefinition(pdef)
+        planner.setup()
+        if hasattr(planner, "getRange"):
+            info["range"] = float(planner.getRange())
+        if self.kind == "PRMstar":   # goal milestones from this thread (module docstring)
+            for _ in range(len(goals) - 1):
+                planner.solve(ob.plannerAlwaysTerminatingCondition())
+        timing["setup"] = time.perf_counter() - t
+        t = time.perf_counter()
+        remaining = t0 + time_limit_s - t
+        status = planner.solve(max(remaining, 1e-6)) if remaining > 0 else None
+        timing["solve"] = time.perf_counter() - t
+        info["ompl_status"] = status.asString() if status is not None else "not run"
+        exact = (status is not None
+                 and status.getStatus() == ob.PlannerStatus.PlannerStatusType.EXACT_SOLUTION)
+        if not exact:
+            return done("timeout")
+        path = pdef.getSolutionPath()
+        info["raw_waypoints"] = int(path.getStateCount())
+        if self.simplify:
+            t = time.perf_counter()
+            simplifier = self._og.PathSimplifier(self.si, gs)
+            simplifier.simplify(path, self.simplify_time_s)
+            timing["simplify"] = time.perf_counter() - t
+        return done("solved", self._path_array(path))
