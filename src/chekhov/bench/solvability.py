@@ -1,0 +1,97 @@
+"""The paper's solvability pass: every case must be solved by at least one planner.
+
+Each case is given to the planners in turn (start configuration, goal pose, ``time_limit_s``
+each); a case none of them solves is replaced by a new sample — replacement ``a`` of case ``i``
+comes from the stream ``default_rng([seed, i, a])``, so the candidates are deterministic — and
+the new case is tried again, up to ``max_attempts`` replacements. Which cases get replaced
+depends on the planners' outcomes within their time limits, so a file after a solvability pass
+is the reference to keep with benchmark results (its ``replaced`` field says how many).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from chekhov.bench.cases import CaseSet, sample_case
+from chekhov.errors import ChekhovError
+from chekhov.planners.base import Planner
+from chekhov.robot.goal import Goal
+from chekhov.world import World
+
+
+@dataclass(frozen=True, eq=False)
+class SolvabilityReport:
+    """What a solvability pass did.
+
+    Attributes:
+        cases: the cases after the pass (``cases.replaced`` includes this pass).
+        replaced: how many replacements this pass made.
+        replaced_indices: indices of the cases that were replaced (at least once).
+        unsolved_indices: cases still unsolved after ``max_attempts`` replacements (kept).
+        planners: names of the planners used. time_limit_s: their limit per case (s).
+        time_s: wall time of the pass (s).
+    """
+
+    cases: CaseSet
+    replaced: int
+    replaced_indices: tuple[int, ...]
+    unsolved_indices: tuple[int, ...]
+    planners: tuple[str, ...]
+    time_limit_s: float
+    time_s: float
+
+
+def default_planners(world: World) -> list[Planner]:
+    """The cheap default: OMPL's RRTConnect (LazyPRM when OMPL is missing)."""
+    try:
+        from chekhov.planners.ompl_planner import OmplPlanner
+        return [OmplPlanner(world, "RRTConnect", seed=0)]
+    except ChekhovError:  # pragma: no cover - ompl is a dependency
+        from chekhov.planners.lazy_prm import LazyPRM
+        return [LazyPRM(world, seed=0)]
+
+
+def solvability_pass(world: World, cases: CaseSet, planners: Sequence[Planner] | None = None,
+                     time_limit_s: float = 1.0, max_attempts: int = 20,
+                     progress: Callable[[int, int], None] | None = None) -> SolvabilityReport:
+    """Replace the cases that no planner solves within ``time_limit_s`` (s) by new samples.
+
+    ``planners`` default to :func:`default_planners` (RRTConnect). ``progress(done, total)`` is
+    called after each case.
+    """
+    cases.check_world(world)
+    t0 = time.perf_counter()
+    planners = list(planners) if planners is not None else default_planners(world)
+    q_start, q_goal = cases.q_start.copy(), cases.q_goal.copy()
+    T_start, T_goal = cases.T_world_ee_start.copy(), cases.T_world_ee_goal.copy()
+    replaced, replaced_idx, unsolved = 0, [], []
+    robot = world.robot
+    for i in range(len(cases)):
+        attempt = 0
+        while not _solved(planners, q_start[i], Goal.pose(T_goal[i]), time_limit_s):
+            if attempt == max_attempts:
+                unsolved.append(i)
+                break
+            attempt += 1
+            q_start[i], q_goal[i] = sample_case(world, cases.seed, i, attempt)
+            T_start[i] = robot.compute_ee_pose(q_start[i])
+            T_goal[i] = robot.compute_ee_pose(q_goal[i])
+            replaced += 1
+        if attempt:
+            replaced_idx.append(i)
+        if progress is not None:
+            progress(i + 1, len(cases))
+    out = replace(cases, q_start=q_start, q_goal=q_goal, T_world_ee_start=T_start,
+                  T_world_ee_goal=T_goal, replaced=cases.replaced + replaced)
+    return SolvabilityReport(out, replaced, tuple(replaced_idx), tuple(unsolved),
+                             tuple(p.name for p in planners), float(time_limit_s),
+                             time.perf_counter() - t0)
+
+
+def _solved(planners: Sequence[Planner], q_start: np.ndarray, goal: Goal,
+            time_limit_s: float) -> bool:
+    return any(p.plan(q_start, goal, time_limit_s).success for p in planners)

@@ -1,0 +1,95 @@
+"""Case commands: ``chekhov cases generate`` and ``chekhov cases info``.
+
+    chekhov cases generate SCENE --n 5000 --seed S [--out FILE]
+                           [--solvability-limit S | --no-solvability] [--planners NAME...]
+    chekhov cases info FILE [--scene SCENE]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from chekhov.errors import ChekhovError
+
+
+def _cmd_generate(args: argparse.Namespace) -> int:
+    from chekhov.bench.cases import generate_cases
+    from chekhov.bench.solvability import solvability_pass
+    from chekhov.planners.ompl_planner import OmplPlanner
+    from chekhov.world import World
+
+    if args.n < 1:
+        raise ChekhovError(f"--n must be at least 1, got {args.n}")
+    world = World.load(args.scene)
+    t0 = time.perf_counter()
+    cases = generate_cases(world, args.n, args.seed)
+    print(f"generated {len(cases)} cases for '{world.scene.name}' (seed {args.seed}) in "
+          f"{time.perf_counter() - t0:.1f} s")
+    if not args.no_solvability:
+        planners = [OmplPlanner(world, name, seed=args.seed) for name in args.planners]
+
+        def progress(done: int, total: int) -> None:
+            if sys.stderr.isatty() and (done % 10 == 0 or done == total):
+                print(f"\rsolvability pass {done}/{total}", end="", file=sys.stderr, flush=True)
+
+        rep = solvability_pass(world, cases, planners, args.solvability_limit,
+                               progress=progress)
+        if sys.stderr.isatty():
+            print(file=sys.stderr)
+        cases = rep.cases
+        print(f"solvability pass ({', '.join(rep.planners)}, {rep.time_limit_s:g} s each): "
+              f"{rep.replaced} replacement(s) for {len(rep.replaced_indices)} case(s)"
+              + (f", {len(rep.unsolved_indices)} still unsolved" if rep.unsolved_indices else "")
+              + f", {rep.time_s:.1f} s")
+    out = Path(args.out) if args.out else Path(
+        f"{world.scene.name}-s{args.seed}-n{args.n}.npz")
+    cases.save(out)
+    print(f"wrote {out}")
+    return 0
+
+
+def _cmd_info(args: argparse.Namespace) -> int:
+    from chekhov.bench.cases import CaseSet
+    from chekhov.world import World
+
+    world = World.load(args.scene) if args.scene else None
+    cases = CaseSet.load(args.file, world)
+    meta = cases.meta()
+    d = np.linalg.norm(cases.q_goal - cases.q_start, axis=1)
+    print(f"{args.file}: {meta['format']} version {meta['version']}")
+    print(f"  scene      {cases.scene} (content hash {cases.scene_hash[:12]})"
+          + (" — matches" if world is not None else ""))
+    print(f"  robot      {cases.robot} ({cases.dof} joints: {', '.join(cases.joint_names)})")
+    print(f"  cases      {len(cases)} (seed {cases.seed}, {cases.replaced} replaced by "
+          "solvability passes)")
+    print(f"  start→goal joint distance (rad): min {d.min():.2f}  median {np.median(d):.2f}  "
+          f"max {d.max():.2f}")
+    return 0
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("cases", help="generate and inspect planning test cases")
+    csub = p.add_subparsers(dest="cases_command", required=True)
+    g = csub.add_parser("generate", help="random start/goal cases for a scene (deterministic "
+                        "for a seed), with the paper's solvability pass")
+    g.add_argument("scene", help="built-in scene name or scene YAML file")
+    g.add_argument("--n", type=int, default=5000, help="number of cases (default 5000)")
+    g.add_argument("--seed", type=int, default=0)
+    g.add_argument("--out", help="output .npz (default SCENE-sSEED-nN.npz)")
+    g.add_argument("--solvability-limit", type=float, default=1.0, metavar="S",
+                   help="time limit per planner and case of the solvability pass (s)")
+    g.add_argument("--planners", nargs="+", default=["RRTConnect"],
+                   help="OMPL planners of the solvability pass (default RRTConnect)")
+    g.add_argument("--no-solvability", action="store_true",
+                   help="skip the solvability pass (the cases are then exactly "
+                        "generate_cases(n, seed))")
+    g.set_defaults(func=_cmd_generate)
+    i = csub.add_parser("info", help="summary of a case file")
+    i.add_argument("file")
+    i.add_argument("--scene", help="also check that the file belongs to this scene")
+    i.set_defaults(func=_cmd_info)
