@@ -140,3 +140,25 @@ def test_densify_shape_and_endpoints():
     D = densify(P, 100)
     assert D.shape == (2 * 101 + 1, 7)
     assert np.allclose(D[0], P[0]) and np.allclose(D[101], P[1]) and np.allclose(D[-1], P[2])
+
+
+@pytest.mark.parametrize("scene", SCENES)
+def test_exact_path_check_equals_checking_every_configuration(world_of, scene):
+    """The distance-certified path check finds the same first colliding configuration as
+    checking every densified configuration one by one, on free and colliding paths."""
+    w = world_of(scene)
+    rng = np.random.default_rng(sum(map(ord, scene)))
+    Q = w.robot.sample_uniform(rng, 2000)
+    free = Q[w.fast.valid(Q)]
+    found = {True: 0, False: 0}
+    for n in range(30):
+        q0 = free[rng.integers(len(free))]
+        steps = rng.normal(scale=(0.05, 0.2, 0.5)[n % 3], size=(int(rng.integers(1, 5)), 7))
+        P = np.clip(np.vstack([q0, q0 + np.cumsum(steps, axis=0)]), w.robot.lower,
+                    w.robot.upper)
+        substeps = (0, 5, 20)[n % 3]
+        brute = w.exact.first_collision_brute(densify(P, substeps))
+        assert w.exact.first_collision(P, substeps) == brute, (scene, n)
+        assert w.exact.path_valid(P, substeps) == (brute is None)
+        found[brute is None] += 1
+    assert found[True] >= 5 and found[False] >= 5, found

@@ -9,6 +9,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
+from chekhov.collision.advance import first_collision_certified, pair_weights
 from chekhov.errors import RobotError
 from chekhov.robot.robot import Robot
 from chekhov.scene.model import Scene, Shape
@@ -56,6 +57,7 @@ class ExactChecker:
             for o in self._obstacles.values():
                 gm.addCollisionPair(pin.CollisionPair(g, o))
         self.geom_data = pin.GeometryData(gm)
+        self._weights = pair_weights(self.model, gm)
 
     def add_obstacle(self, name: str, shape: Shape, T_world_obj: Array) -> None:
         if name in self._obstacles:
@@ -103,8 +105,21 @@ class ExactChecker:
         """Index into the densified path of the first colliding configuration, or None.
 
         The path (T, K) is densified with ``substeps`` configurations interpolated between each
-        pair of waypoints (the paper's check: 100), waypoints included."""
-        for i, q in enumerate(densify(path, substeps)):
+        pair of waypoints (the paper's check: 100), waypoints included. The answer is that of
+        checking every densified configuration with :meth:`is_valid`, in order; a collision
+        pair is only looked at again once the joint motion since its last coal distance could
+        have closed that distance (conservative advancement, see ``advance.py``)."""
+        D = densify(path, substeps)
+        if D.shape[1] != self.robot.dof:
+            raise RobotError(f"expected a path of shape (T, {self.robot.dof}), got {D.shape}")
+        if self._weights is None:  # a joint the motion bound does not cover: one by one
+            return self.first_collision_brute(D)
+        return first_collision_certified(self.model, self.data, self.geom_model,
+                                         self.geom_data, D, *self._weights)
+
+    def first_collision_brute(self, D: Array) -> int | None:
+        """Reference: the first configuration of D (N, K) that :meth:`is_valid` rejects."""
+        for i, q in enumerate(np.atleast_2d(np.asarray(D, dtype=float))):
             if not self.is_valid(q):
                 return i
         return None
