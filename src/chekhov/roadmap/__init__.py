@@ -1,0 +1,1 @@
+"""The Chekhov roadmap: offline PRM over the static obstacles with cached shortest paths."""

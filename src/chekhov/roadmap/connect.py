@@ -1,0 +1,158 @@
+"""Joining a start or goal configuration to the roadmap with collision-free straight motions.
+
+Direct connections (the paper's definition) are tried first, nearest nodes in joint space in
+small batches so that the usual case costs one or two motion checks. When none is free, and
+``SeederConfig.bridges`` is on, two-segment connections through an intermediate configuration
+are tried, cheapest idea first:
+
+* ``wrist``: keep the proximal joints, move the distal joints to the roadmap's fixed values
+  (the configuration then lies in the subspace the uniform nodes cover densely), then go
+  straight to a node;
+* ``proximal``: move the proximal joints to a node's values with the wrist as it is, then turn
+  the wrist;
+* ``random``: a random configuration within ``bridge_radius`` rad, then straight to a node.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
+
+from chekhov.roadmap.graph import Roadmap
+from chekhov.roadmap.validity import RoadmapValidity
+from chekhov.world import World
+
+if TYPE_CHECKING:
+    from chekhov.roadmap.seeder import SeederConfig
+
+Array = NDArray[np.float64]
+_BATCHES = (1, 2, 6)
+
+
+@dataclass(frozen=True, eq=False)
+class Connection:
+    """A free way from a configuration q to roadmap node ``node``: q → via rows → node.
+
+    Attributes:
+        node: roadmap node index. cost: joint-space length, rad. via: (m, K) intermediates.
+        kind: "direct", "wrist", "proximal" or "random".
+    """
+
+    node: int
+    cost: float
+    via: Array
+    kind: str
+
+
+class Connector:
+    """Connections of arbitrary configurations to one roadmap, against the world's current
+    obstacles (``world.fast``)."""
+
+    def __init__(self, world: World, roadmap: Roadmap, validity: RoadmapValidity,
+                 config: SeederConfig, resolution: float, proximal: int, distal: Array) -> None:
+        self.world = world
+        self.roadmap = roadmap
+        self.validity = validity
+        self.config = config
+        self.resolution = resolution
+        self.proximal = proximal
+        self.distal = distal
+        self.tree = cKDTree(roadmap.nodes)
+        self.rng = np.random.default_rng(0)
+
+    def _motions(self, Q0: Array, Q1: Array) -> NDArray[np.bool_]:
+        return self.world.fast.motions_valid(Q0, Q1, self.resolution)
+
+    def direct(self, q: Array, n_candidates: int, batches: tuple[int, ...] = _BATCHES,
+               ) -> list[tuple[int, float]]:
+        """(node, length rad) of free straight connections from q (itself known free), nearest
+        nodes first, stopping after the first batch that yields one."""
+        k = min(n_candidates, self.roadmap.n_nodes)
+        d, idx = self.tree.query(q, k=k)
+        d, idx = np.atleast_1d(d), np.atleast_1d(idx)
+        ok_node = self.validity.nodes_valid(idx)
+        d, idx = d[ok_node], idx[ok_node]
+        out: list[tuple[int, float]] = []
+        lo = 0
+        for size in (*batches, len(idx)):
+            hi = min(lo + size, len(idx))
+            if hi <= lo:
+                break
+            sel = idx[lo:hi]
+            ok = self._motions(np.repeat(q[None], len(sel), axis=0), self.roadmap.nodes[sel])
+            out += [(int(n), float(c)) for n, c, v in zip(sel, d[lo:hi], ok, strict=True) if v]
+            if out:
+                break
+            lo = hi
+        return out[: self.config.max_connections]
+
+    def connect(self, q: Array) -> list[Connection]:
+        """Free connections of q (K,) (known free) to the roadmap, cheapest first; empty when
+        there is none (the roadmap failure)."""
+        found = [Connection(n, c, q[:0].reshape(0, len(q)), "direct")
+                 for n, c in self.direct(q, self.config.connect_candidates)]
+        if found or not self.config.bridges:
+            return found
+        for attempt in (self._via_wrist, self._via_proximal, self._via_random):
+            found = attempt(q)
+            if found:
+                return sorted(found, key=lambda c: c.cost)
+        return []
+
+    def _bridge(self, q: Array, Q_mid: Array, kind: str, n_candidates: int,
+                ) -> list[Connection]:
+        """Connections q → q_mid → node for the first intermediates (rows of Q_mid) that are
+        free and reachable from q in a straight line."""
+        fast = self.world.fast
+        within = self.world.robot.within_limits(Q_mid)
+        Q_mid = Q_mid[within]
+        if len(Q_mid) == 0:
+            return []
+        Q_mid = Q_mid[fast.valid(Q_mid)]
+        if len(Q_mid) == 0:
+            return []
+        Q_mid = Q_mid[self._motions(np.repeat(q[None], len(Q_mid), axis=0), Q_mid)]
+        out: list[Connection] = []
+        for q_mid in Q_mid:
+            c0 = float(np.linalg.norm(q_mid - q))
+            out += [Connection(n, c0 + c, q_mid[None], kind)
+                    for n, c in self.direct(q_mid, n_candidates, batches=(4,))]
+            if out:
+                break
+        return out
+
+    def _via_wrist(self, q: Array) -> list[Connection]:
+        q_mid = q.copy()
+        q_mid[self.proximal:] = self.distal
+        if np.allclose(q_mid, q):
+            return []
+        return self._bridge(q, q_mid[None], "wrist", self.config.connect_candidates)
+
+    def _via_proximal(self, q: Array) -> list[Connection]:
+        P = self.proximal
+        _, idx = self.tree.query(q, k=min(8, self.roadmap.n_nodes))
+        idx = np.atleast_1d(idx)
+        idx = idx[self.validity.nodes_valid(idx)]
+        if len(idx) == 0:
+            return []
+        Q_mid = np.repeat(q[None], len(idx), axis=0)
+        Q_mid[:, :P] = self.roadmap.nodes[idx, :P]
+        fast = self.world.fast
+        ok = fast.valid(Q_mid)
+        ok[ok] = self._motions(np.repeat(q[None], int(ok.sum()), axis=0), Q_mid[ok])
+        ok[ok] = self._motions(Q_mid[ok], self.roadmap.nodes[idx[ok]])
+        return [Connection(int(n), float(np.linalg.norm(m - q) + np.linalg.norm(
+            self.roadmap.nodes[n] - m)), m[None], "proximal")
+            for n, m in zip(idx[ok], Q_mid[ok], strict=True)][: self.config.max_connections]
+
+    def _via_random(self, q: Array) -> list[Connection]:
+        M, K = self.config.bridge_samples, len(q)
+        u = self.rng.normal(size=(M, K))
+        u /= np.linalg.norm(u, axis=1, keepdims=True)
+        r = self.rng.uniform(0.1, self.config.bridge_radius, size=(M, 1))
+        Q_mid = np.clip(q + u * r, self.world.robot.lower, self.world.robot.upper)
+        return self._bridge(q, Q_mid, "random", 8)

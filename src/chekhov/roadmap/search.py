@@ -1,0 +1,112 @@
+"""Compiled graph searches on the roadmap's CSR adjacency: path recovery from a predecessor
+matrix, and A* with banned nodes / edges (used by Yen's algorithm and the lazy search).
+
+The graph is undirected; every edge e = (u, v) appears twice in the CSR arrays
+(``indices``, ``weights``, ``edge_id``), once per direction, both with ``edge_id`` e.
+"""
+
+from __future__ import annotations
+
+import heapq
+from itertools import pairwise
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+IntArray = NDArray[np.int64]
+
+
+@njit(cache=True)
+def recover_path(pred_row, src, dst):  # pragma: no cover - compiled
+    """Nodes src → dst from the predecessor row of ``src`` (scipy's convention: -9999 for
+    none); an empty array when dst is unreachable."""
+    if src == dst:
+        out = np.empty(1, dtype=np.int64)
+        out[0] = src
+        return out
+    n = 1
+    v = dst
+    while v != src:
+        v = pred_row[v]
+        if v < 0:
+            return np.empty(0, dtype=np.int64)
+        n += 1
+    out = np.empty(n, dtype=np.int64)
+    v = dst
+    for i in range(n - 1, -1, -1):
+        out[i] = v
+        if i > 0:
+            v = pred_row[v]
+    return out
+
+
+@njit(cache=True)
+def astar(indptr, indices, weights, edge_id, src, dst, heuristic, node_ok,
+          edge_ok):  # pragma: no cover - compiled
+    """Shortest path src → dst avoiding nodes with ``node_ok`` False and edges with ``edge_ok``
+    False. ``heuristic`` (N,) must be admissible (e.g. the all-pairs distance to dst on the
+    full graph). Returns (nodes, cost); nodes is empty when dst is unreachable."""
+    N = indptr.shape[0] - 1
+    g = np.full(N, np.inf)
+    parent = np.full(N, -1, dtype=np.int64)
+    closed = np.zeros(N, dtype=np.bool_)
+    if not node_ok[src] or not node_ok[dst]:
+        return np.empty(0, dtype=np.int64), np.inf
+    g[src] = 0.0
+    heap = [(heuristic[src], src)]
+    while len(heap) > 0:
+        _, u = heapq.heappop(heap)
+        if closed[u]:
+            continue
+        if u == dst:
+            break
+        closed[u] = True
+        for a in range(indptr[u], indptr[u + 1]):
+            v = indices[a]
+            if closed[v] or not node_ok[v] or not edge_ok[edge_id[a]]:
+                continue
+            nd = g[u] + weights[a]
+            if nd < g[v]:
+                g[v] = nd
+                parent[v] = u
+                heapq.heappush(heap, (nd + heuristic[v], v))
+    if not np.isfinite(g[dst]):
+        return np.empty(0, dtype=np.int64), np.inf
+    n = 1
+    v = dst
+    while v != src:
+        v = parent[v]
+        n += 1
+    out = np.empty(n, dtype=np.int64)
+    v = dst
+    for i in range(n - 1, -1, -1):
+        out[i] = v
+        v = parent[v]
+    return out, g[dst]
+
+
+def edge_lookup(indptr: IntArray, indices: IntArray, edge_id: IntArray, u: int, v: int) -> int:
+    """Edge id of (u, v), or -1 when they are not adjacent (rows of ``indices`` sorted)."""
+    lo, hi = int(indptr[u]), int(indptr[u + 1])
+    a = lo + int(np.searchsorted(indices[lo:hi], v))
+    return int(edge_id[a]) if a < hi and indices[a] == v else -1
+
+
+def path_edges(indptr: IntArray, indices: IntArray, edge_id: IntArray,
+               nodes: IntArray) -> IntArray:
+    """Edge ids along a node path (len(nodes) - 1,)."""
+    return np.array([edge_lookup(indptr, indices, edge_id, int(a), int(b))
+                     for a, b in pairwise(nodes)], dtype=np.int64)
+
+
+def warm_up() -> None:
+    """Compile (or load from numba's cache) the kernels, so the first query is not slow."""
+    indptr = np.array([0, 1, 2], dtype=np.int64)
+    indices = np.array([1, 0], dtype=np.int64)
+    eid = np.zeros(2, dtype=np.int64)
+    w = np.ones(2)
+    astar(indptr, indices, w, eid, 0, 1, np.zeros(2), np.ones(2, dtype=np.bool_),
+          np.ones(1, dtype=np.bool_))
+    recover_path(np.array([-9999, 0], dtype=np.int32), 0, 1)
+    recover_path(np.array([-9999, 0], dtype=np.int16), 0, 1)

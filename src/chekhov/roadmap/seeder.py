@@ -1,0 +1,278 @@
+"""Roadmap queries: start configuration + goal → a collision-free seed path through the roadmap,
+against the world's current obstacles (dynamic ones included)."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
+
+from chekhov.roadmap.build import distal_values
+from chekhov.roadmap.connect import Connection, Connector
+from chekhov.roadmap.errors import RoadmapMismatchError
+from chekhov.roadmap.graph import Roadmap
+from chekhov.roadmap.kinematics import ChainKinematics
+from chekhov.roadmap.kpaths import KShortestPaths
+from chekhov.roadmap.search import astar, path_edges, warm_up
+from chekhov.roadmap.validity import INVALID, RoadmapValidity
+from chekhov.robot.goal import Goal
+from chekhov.world import World
+
+Array = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+
+@dataclass(frozen=True)
+class SeederConfig:
+    """Query settings.
+
+    Attributes:
+        n_goal_ik: distinct IK solutions wanted for a pose goal.
+        ik_seeds: roadmap nodes (nearest end-effector pose to the goal) that seed the IK.
+        ik_random_seeds, ik_random_rounds: random restarts per round, and rounds, tried only
+            when the node seeds give no collision-free solution.
+        connect_candidates: nearest roadmap nodes tried for a direct connection (rad L2).
+        max_connections: free connections kept per end point; the seed minimises
+            start cost + roadmap distance + goal cost over their combinations.
+        bridges: when no direct connection exists, try two-segment connections through an
+            intermediate configuration (wrist set to the roadmap's distal values, proximal
+            joints moved first, or a random nearby configuration).
+        bridge_samples: random intermediates tried, at ``bridge_radius`` rad at most.
+        max_pair_tries: (start node, goal node) pairs tried when dynamic obstacles block paths.
+        lazy_iterations: A* rounds of the lazy search on the remaining graph.
+        resolution: rad, motion check step; None: the roadmap's.
+    """
+
+    n_goal_ik: int = 3
+    ik_seeds: int = 6
+    ik_random_seeds: int = 32
+    ik_random_rounds: int = 4
+    connect_candidates: int = 32
+    max_connections: int = 3
+    bridges: bool = True
+    bridge_samples: int = 48
+    bridge_radius: float = 0.8
+    max_pair_tries: int = 6
+    lazy_iterations: int = 60
+    resolution: float | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class SeedResult:
+    """A roadmap query's answer.
+
+    Attributes:
+        success: a seed path was found.
+        status: "solved", "no_ik" (pose goal without a collision-free IK solution),
+            "no_connection" (start or goal cannot be joined to the roadmap: the paper's
+            roadmap failure), "no_path" (dynamic obstacles cut every roadmap route),
+            "invalid_start" / "invalid_goal" (in collision or outside the limits).
+        path: (T, K) rad: start, connection intermediates, roadmap nodes, goal; None on failure.
+        node_path: roadmap node indices along the path.
+        q_goal: (K,) the goal configuration used.
+        timing_s: s, by phase: "ik", "connect", "search", "validate", "total".
+        info: connection kinds ("direct", "wrist", "proximal", "random"), which stored path
+            was used ("path_rank"; -1: lazy search), checks made.
+    """
+
+    success: bool
+    status: str
+    path: Array | None
+    node_path: IntArray
+    q_goal: Array | None
+    timing_s: dict[str, float]
+    info: dict[str, object] = field(default_factory=dict)
+
+    @property
+    def length_rad(self) -> float:
+        """Joint-space length of the seed path (rad); nan without one."""
+        if self.path is None:
+            return float("nan")
+        return float(np.linalg.norm(np.diff(self.path, axis=0), axis=1).sum())
+
+
+class RoadmapSeeder:
+    """Seed paths from a roadmap for one world. The roadmap must have been built for the world's
+    scene (same content hash) and robot."""
+
+    def __init__(self, world: World, roadmap: Roadmap, config: SeederConfig | None = None
+                 ) -> None:
+        meta = roadmap.meta
+        if meta.robot != world.robot.name or meta.scene_hash != world.scene.content_hash():
+            raise RoadmapMismatchError(
+                f"roadmap for robot '{meta.robot}', scene '{meta.scene}' "
+                f"({meta.scene_hash[:12]}) does not match the world: robot "
+                f"'{world.robot.name}', scene '{world.scene.name}' "
+                f"({world.scene.content_hash()[:12]})")
+        self.world = world
+        self.roadmap = roadmap
+        self.config = config or SeederConfig()
+        self.resolution = (self.config.resolution if self.config.resolution is not None
+                           else roadmap.config.resolution)
+        self.kin = ChainKinematics.from_robot(world.robot)
+        self.ee_tree = cKDTree(roadmap.ee_position)
+        self.validity = RoadmapValidity(roadmap, world.fast, self.resolution)
+        self.kpaths = KShortestPaths(roadmap)
+        P, distal = distal_values(world, roadmap.config)
+        self.connector = Connector(world, roadmap, self.validity, self.config, self.resolution,
+                                   P, distal)
+        warm_up()
+        self.kin.solve(np.eye(4), roadmap.nodes[:1], max_iterations=1)  # compile / load
+
+    # --- goal ---------------------------------------------------------------------------
+    def goal_configurations(self, T_world_ee: Array) -> tuple[Array, str]:
+        """Collision-free IK solutions (n, K) of a goal pose seeded from the roadmap nodes
+        whose end-effector poses are nearest; ("", reason) on failure."""
+        cfg = self.config
+        T = np.asarray(T_world_ee, dtype=float)
+        k = min(4 * cfg.ik_seeds, self.roadmap.n_nodes)
+        d_pos, idx = self.ee_tree.query(T[:3, 3], k=k)
+        # rank by position + rotation distance (cos of the relative angle from the trace)
+        tr = np.einsum("nij,ij->n", self.roadmap.ee_rotation[idx], T[:3, :3])
+        angle = np.arccos(np.clip((tr - 1) / 2, -1, 1))
+        order = np.argsort(d_pos + 0.2 * angle)[: cfg.ik_seeds]
+        seeds = self.roadmap.nodes[idx[order]]
+        sols = self._free_ik(T, seeds)
+        rng = np.random.default_rng(0)
+        rounds = 0
+        while len(sols) == 0 and rounds < cfg.ik_random_rounds:
+            rounds += 1
+            sols = self._free_ik(T, self.world.robot.sample_uniform(rng, cfg.ik_random_seeds))
+        if len(sols) == 0:
+            return sols, (f"no collision-free IK solution from {cfg.ik_seeds} roadmap seeds "
+                          f"and {rounds * cfg.ik_random_seeds} random ones")
+        picked: list[Array] = []
+        for q in sols:
+            if all(np.linalg.norm(q - s) >= 0.1 for s in picked):
+                picked.append(q)
+                if len(picked) >= cfg.n_goal_ik:
+                    break
+        return np.array(picked), ""
+
+    def _free_ik(self, T: Array, seeds: Array) -> Array:
+        """Converged, collision-free solutions from the seeds (stops after n_goal_ik)."""
+        Q, ok = self.kin.solve(T, seeds, stop_after=self.config.n_goal_ik)
+        Q = Q[ok]
+        return Q[self.world.fast.valid(Q)] if len(Q) else Q
+
+    # --- query --------------------------------------------------------------------------
+    def seed(self, q_start: Array, goal: Goal) -> SeedResult:
+        """A seed path from q_start (K,) to the goal, avoiding the world's current obstacles."""
+        t0 = time.perf_counter()
+        timing = {"ik": 0.0, "connect": 0.0, "search": 0.0, "validate": 0.0}
+        robot, fast = self.world.robot, self.world.fast
+        q_start = robot.check_configuration(q_start, "start configuration")
+        self.validity.refresh()
+        checks0 = dict(self.validity.checks)
+
+        def fail(status: str, **info: object) -> SeedResult:
+            timing["total"] = time.perf_counter() - t0
+            return SeedResult(False, status, None, np.empty(0, dtype=np.int64), None, timing,
+                              dict(info))
+
+        if not (robot.within_limits(q_start)[0] and fast.is_valid(q_start)):
+            return fail("invalid_start", reason="start outside the limits or in collision")
+        t = time.perf_counter()
+        if goal.is_pose:
+            assert goal.T_world_ee is not None
+            Q_goal, why = self.goal_configurations(goal.T_world_ee)
+            timing["ik"] = time.perf_counter() - t
+            if len(Q_goal) == 0:
+                return fail("no_ik", reason=why)
+        else:
+            assert goal.q is not None
+            q_goal = robot.check_configuration(goal.q, "goal configuration")
+            if not (robot.within_limits(q_goal)[0] and fast.is_valid(q_goal)):
+                return fail("invalid_goal", reason="goal outside the limits or in collision")
+            Q_goal = q_goal[None]
+        t = time.perf_counter()
+        starts = self.connector.connect(q_start)
+        goals: list[tuple[int, Connection]] = []
+        if starts:
+            for gi, qg in enumerate(Q_goal):
+                goals += [(gi, c) for c in self.connector.connect(qg)]
+                if goals and len(goals) >= self.config.max_connections:
+                    break
+        timing["connect"] = time.perf_counter() - t
+        if not starts or not goals:
+            return fail("no_connection", side="start" if not starts else "goal")
+        result = self._route(q_start, Q_goal, starts, goals, timing)
+        timing["total"] = time.perf_counter() - t0
+        if result is None:
+            return fail("no_path", reason="dynamic obstacles cut every roadmap route tried")
+        path, nodes, q_goal, info = result
+        info["checks"] = {k: self.validity.checks[k] - checks0[k] for k in checks0}
+        return SeedResult(True, "solved", path, nodes, q_goal, timing, info)
+
+    def _route(self, q_start: Array, Q_goal: Array, starts: list[Connection],
+               goals: list[tuple[int, Connection]], timing: dict[str, float]
+               ) -> tuple[Array, IntArray, Array, dict[str, object]] | None:
+        rm = self.roadmap
+        t = time.perf_counter()
+        s_nodes = np.array([c.node for c in starts])
+        g_nodes = np.array([c.node for _, c in goals])
+        total = (np.array([c.cost for c in starts])[:, None]
+                 + rm.dist[s_nodes[:, None], g_nodes[None, :]]
+                 + np.array([c.cost for _, c in goals])[None, :])
+        order = np.argsort(total, axis=None)[: self.config.max_pair_tries]
+        timing["search"] += time.perf_counter() - t
+        for flat in order:
+            si, gi = np.unravel_index(flat, total.shape)
+            if not np.isfinite(total[si, gi]):
+                break
+            sc, (qi, gc) = starts[si], goals[gi]
+            found = self._roadmap_path(sc.node, gc.node, timing)
+            if found is None:
+                continue
+            nodes, rank = found
+            q_goal = Q_goal[qi]
+            path = np.vstack([q_start[None], *sc.via, rm.nodes[nodes], *gc.via[::-1],
+                              q_goal[None]])
+            keep = np.ones(len(path), dtype=bool)
+            keep[1:] = np.linalg.norm(np.diff(path, axis=0), axis=1) > 1e-12
+            info: dict[str, object] = {"start_connection": sc.kind, "goal_connection": gc.kind,
+                                       "path_rank": rank, "start_node": sc.node,
+                                       "goal_node": gc.node}
+            return path[keep], nodes, q_goal, info
+        return None
+
+    def _roadmap_path(self, s: int, g: int, timing: dict[str, float]
+                      ) -> tuple[IntArray, int] | None:
+        """Roadmap nodes s → g free of the current obstacles: the cached shortest path, else
+        the next stored k shortest, else a lazy A* on the remaining graph (rank -1)."""
+        rm, val = self.roadmap, self.validity
+        t = time.perf_counter()
+        nodes = rm.shortest_path(s, g)
+        timing["search"] += time.perf_counter() - t
+        if len(nodes) == 0:
+            return None
+        if val.all_valid:
+            return nodes, 0
+        t = time.perf_counter()
+        try:
+            if val.path_valid(nodes, path_edges(rm.indptr, rm.indices, rm.edge_id, nodes)):
+                return nodes, 0
+            for rank, p in enumerate(self.kpaths.paths(s, g)[1:], start=1):
+                if val.path_valid(p, path_edges(rm.indptr, rm.indices, rm.edge_id, p)):
+                    return p, rank
+            lazy = self._lazy_search(s, g)
+            return None if lazy is None else (lazy, -1)
+        finally:
+            timing["validate"] += time.perf_counter() - t
+
+    def _lazy_search(self, s: int, g: int) -> IntArray | None:
+        """A* treating unchecked nodes and edges as free; check the found path, forbid what
+        fails, repeat (LazyPRM). The heuristic is the static all-pairs distance to g."""
+        rm, val = self.roadmap, self.validity
+        h = rm.dist[:, g].astype(np.float64)
+        for _ in range(self.config.lazy_iterations):
+            nodes, _ = astar(rm.indptr, rm.indices, rm.weights, rm.edge_id, s, g, h,
+                             val.node_state != INVALID, val.edge_state != INVALID)
+            if len(nodes) == 0:
+                return None
+            if val.path_valid(nodes, path_edges(rm.indptr, rm.indices, rm.edge_id, nodes)):
+                return nodes
+        return None

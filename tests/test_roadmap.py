@@ -1,0 +1,244 @@
+"""The roadmap (issue 4): build, k shortest paths, save/load, queries, dynamic obstacles, CLI."""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import json
+
+import numpy as np
+import pytest
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import dijkstra
+
+from chekhov.cli import main
+from chekhov.collision.fast import FastChecker
+from chekhov.roadmap.build import _csr, build_roadmap
+from chekhov.roadmap.config import RoadmapConfig
+from chekhov.roadmap.errors import RoadmapError, RoadmapMismatchError
+from chekhov.roadmap.io import load_or_build_roadmap, load_roadmap, save_roadmap
+from chekhov.roadmap.kinematics import ChainKinematics
+from chekhov.roadmap.kpaths import KShortestPaths, yen_k_shortest
+from chekhov.roadmap.seeder import RoadmapSeeder
+from chekhov.robot.goal import Goal
+from chekhov.scene.model import Shape
+
+SCENE = "tabletop_pole"
+SMALL = RoadmapConfig(n_nodes=150, n_region_nodes=20, n_wrist_nodes=60, seed=3)
+
+
+@pytest.fixture(scope="module")
+def world(world_of):
+    return world_of(SCENE)
+
+
+@pytest.fixture(scope="module")
+def roadmap(world):
+    return build_roadmap(world, SMALL)
+
+
+@pytest.fixture(scope="module")
+def seeder(world, roadmap):
+    return RoadmapSeeder(world, roadmap)
+
+
+def _free_configurations(world, n, seed):
+    rng = np.random.default_rng(seed)
+    Q = world.robot.sample_uniform(rng, 20 * n)
+    return Q[world.fast.valid(Q)][:n]
+
+
+# --- k shortest paths ---------------------------------------------------------------------
+def _all_simple_paths(adj, src, dst):
+    out, stack = [], [(src, [src])]
+    while stack:
+        u, path = stack.pop()
+        if u == dst:
+            out.append(path)
+            continue
+        for v in adj[u]:
+            if v not in path:
+                stack.append((v, [*path, v]))
+    return out
+
+
+def test_yen_matches_brute_force_enumeration():
+    rng = np.random.default_rng(0)
+    N = 8
+    pairs = [(a, b) for a, b in itertools.combinations(range(N), 2) if rng.random() < 0.5]
+    edges = np.array(pairs, dtype=np.int64)
+    w = rng.uniform(0.5, 2.0, len(edges)).round(3)  # distinct sums almost surely
+    indptr, indices, weights, eid = _csr(N, edges, w)
+    adj = {i: [] for i in range(N)}
+    length = {}
+    for (a, b), c in zip(pairs, w, strict=True):
+        adj[a].append(b)
+        adj[b].append(a)
+        length[(a, b)] = length[(b, a)] = c
+    for src, dst in [(0, N - 1), (1, 5), (2, 6)]:
+        brute = sorted((sum(length[e] for e in itertools.pairwise(p)), p)
+                       for p in _all_simple_paths(adj, src, dst))
+        for k in (1, 3, 6):
+            got = yen_k_shortest(indptr, indices, weights, eid, src, dst, k)
+            assert len(got) == min(k, len(brute))
+            for (c, p), (cb, pb) in zip(got, brute, strict=False):
+                assert c == pytest.approx(cb)
+                assert p.tolist() == pb
+
+
+def test_k_shortest_on_roadmap_are_loopless_and_sorted(roadmap):
+    kp = KShortestPaths(roadmap, k=3)
+    a, b = 0, roadmap.n_nodes - 1
+    paths = kp.paths(a, b)
+    assert 1 <= len(paths) <= 3
+    assert paths[0].tolist() == roadmap.shortest_path(a, b).tolist()
+    costs = [np.linalg.norm(np.diff(roadmap.nodes[p], axis=0), axis=1).sum() for p in paths]
+    assert costs == sorted(costs)
+    assert all(len(set(p.tolist())) == len(p) for p in paths)
+    assert kp.paths(b, a)[0].tolist() == paths[0][::-1].tolist()
+
+
+# --- build --------------------------------------------------------------------------------
+def test_build_every_node_and_edge_free_and_paths_match_scipy(world, roadmap):
+    fast = FastChecker(world.robot, world.scene, static_only=True)
+    rm = roadmap
+    assert rm.meta.node_counts["uniform"] > 100 and rm.meta.node_counts["wrist"] > 0
+    assert fast.valid(rm.nodes).all()
+    e = rm.edges
+    assert fast.motions_valid(rm.nodes[e[:, 0]], rm.nodes[e[:, 1]], SMALL.resolution).all()
+    assert np.isfinite(rm.dist).all()  # pruned to one component
+    uniform = rm.nodes_of_kind("uniform")
+    P = world.robot.description.proximal_joints
+    assert np.allclose(rm.nodes[uniform, P:], world.robot.description.roadmap_fixed)
+    A = coo_matrix((rm.edge_length, (e[:, 0], e[:, 1])), shape=(rm.n_nodes,) * 2)
+    rng = np.random.default_rng(1)
+    for a, b in rng.integers(0, rm.n_nodes, size=(20, 2)):
+        ref = dijkstra(A, directed=False, indices=int(a))[b]
+        path = rm.shortest_path(int(a), int(b))
+        assert path[0] == a and path[-1] == b
+        length = np.linalg.norm(np.diff(rm.nodes[path], axis=0), axis=1).sum()
+        assert length == pytest.approx(ref, rel=1e-9, abs=1e-9)
+        assert rm.dist[a, b] == pytest.approx(ref, rel=1e-5)
+    R, p = ChainKinematics.from_robot(world.robot).ee_poses(rm.nodes[:5])
+    T = world.robot.compute_ee_poses(rm.nodes[:5])
+    assert np.allclose(R, T[:, :3, :3]) and np.allclose(p, T[:, :3, 3])
+    assert np.allclose(p, rm.ee_position[:5])
+
+
+def test_numba_ik_reaches_the_pose(world):
+    kin = ChainKinematics.from_robot(world.robot)
+    Q = _free_configurations(world, 10, 5)
+    T = world.robot.compute_ee_poses(Q)
+    rng = np.random.default_rng(2)
+    for q, Tq in zip(Q, T, strict=True):
+        sol, ok = kin.solve(Tq, q + rng.normal(0, 0.2, len(q)))
+        if ok[0]:
+            Ts = world.robot.compute_ee_pose(sol[0])
+            assert np.linalg.norm(Ts[:3, 3] - Tq[:3, 3]) < 2e-4
+            assert world.robot.within_limits(sol)[0]
+
+
+# --- files --------------------------------------------------------------------------------
+def test_save_load_identical(tmp_path, world, roadmap):
+    path = save_roadmap(roadmap, tmp_path / "rm.npz")
+    back = load_roadmap(path, world)
+    for f in dataclasses.fields(roadmap):
+        if f.name != "meta":
+            a, b = getattr(roadmap, f.name), getattr(back, f.name)
+            assert a.dtype == b.dtype and np.array_equal(a, b), f.name
+    assert back.meta == roadmap.meta
+    assert not list(tmp_path.glob(".rm.npz.*"))  # no temporary left behind
+
+
+def test_loading_for_another_scene_or_newer_version_raises(tmp_path, world, roadmap):
+    path = save_roadmap(roadmap, tmp_path / "rm.npz")
+    other_scene = dataclasses.replace(world.scene, name="moved", objects=world.scene.objects[1:])
+    from chekhov.world import World
+    other = World(other_scene, robot=world.robot)
+    with pytest.raises(RoadmapMismatchError, match=r"rm\.npz.*scene 'tabletop_pole'"):
+        load_roadmap(path, other)
+    with pytest.raises(RoadmapMismatchError):
+        RoadmapSeeder(other, roadmap)
+    with np.load(path) as z:
+        arrays = {k: z[k] for k in z.files}
+    meta = json.loads(str(arrays["meta_json"]))
+    meta["format_version"] = 99
+    arrays["meta_json"] = np.array(json.dumps(meta))
+    np.savez(tmp_path / "new.npz", **arrays)
+    with pytest.raises(RoadmapMismatchError, match=r"new\.npz.*version 99"):
+        load_roadmap(tmp_path / "new.npz")
+    (tmp_path / "junk.npz").write_bytes(b"not a zip")
+    with pytest.raises(RoadmapError, match=r"junk\.npz"):
+        load_roadmap(tmp_path / "junk.npz")
+
+
+def test_load_or_build_reuses_a_matching_file(tmp_path, world):
+    cfg = RoadmapConfig(n_nodes=40, semantic=False, n_wrist_nodes=0, seed=1)
+    a = load_or_build_roadmap(world, cfg, tmp_path / "x.npz")
+    b = load_or_build_roadmap(world, cfg, tmp_path / "x.npz")
+    assert b.meta.created == a.meta.created and np.array_equal(a.nodes, b.nodes)
+    c = load_or_build_roadmap(world, dataclasses.replace(cfg, seed=2), tmp_path / "x.npz")
+    assert not np.array_equal(c.nodes, a.nodes)
+
+
+# --- queries ------------------------------------------------------------------------------
+def test_query_seed_is_valid(world, seeder):
+    Q = _free_configurations(world, 16, 7)
+    solved = 0
+    for q0, qg in zip(Q[:8], Q[8:], strict=True):
+        T = world.robot.compute_ee_pose(qg)
+        r = seeder.seed(q0, Goal.pose(T))
+        assert r.status in ("solved", "no_connection", "no_ik")
+        if not r.success:
+            continue
+        solved += 1
+        assert np.array_equal(r.path[0], q0)
+        assert world.fast.path_valid(r.path, seeder.resolution)
+        T_end = world.robot.compute_ee_pose(r.path[-1])
+        assert np.linalg.norm(T_end[:3, 3] - T[:3, 3]) < 1e-3
+        assert set(r.timing_s) >= {"ik", "connect", "search", "validate", "total"}
+    assert solved >= 6
+    r = seeder.seed(Q[0], Goal.configuration(Q[1]))
+    assert r.success and np.array_equal(r.path[-1], Q[1])
+
+
+def test_dynamic_obstacle_on_the_shortest_path_reroutes(world, roadmap, seeder):
+    rm = roadmap
+    rng = np.random.default_rng(4)
+    for _ in range(40):
+        a, b = (int(x) for x in rng.choice(rm.nodes_of_kind("uniform"), 2, replace=False))
+        first = seeder.seed(rm.nodes[a], Goal.configuration(rm.nodes[b]))
+        if not first.success or len(first.node_path) < 5:
+            continue
+        blocked = int(first.node_path[len(first.node_path) // 2])
+        # a sphere around the elbow of the blocked node
+        T = np.eye(4)
+        T[:3, 3] = world.robot.compute_joint_placements(rm.nodes[blocked])[3][:3, 3]
+        world.add_obstacle("probe", Shape("sphere", (0.06,)), T)
+        try:
+            if not (world.fast.is_valid(rm.nodes[a]) and world.fast.is_valid(rm.nodes[b])):
+                continue
+            second = seeder.seed(rm.nodes[a], Goal.configuration(rm.nodes[b]))
+            if second.status == "no_path":
+                continue
+            assert second.success
+            assert blocked not in second.node_path.tolist()
+            assert not np.array_equal(second.path, first.path)
+            assert world.fast.path_valid(second.path, seeder.resolution)
+            assert second.info["path_rank"] != 0
+            return
+        finally:
+            world.remove_obstacle("probe")
+    pytest.fail("no query found whose path a probe obstacle blocks")
+
+
+# --- CLI ----------------------------------------------------------------------------------
+def test_cli_build_and_info(tmp_path, capsys):
+    out = tmp_path / "pole.npz"
+    assert main(["roadmap", "build", SCENE, "--out", str(out), "--nodes", "60",
+                 "--wrist-nodes", "20", "--quiet"]) == 0
+    assert out.is_file() and "wrote" in capsys.readouterr().out
+    assert main(["roadmap", "info", str(out), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["scene"] == SCENE and info["nodes"] >= 50 and info["edges"] > 0
+    assert main(["roadmap", "info", str(tmp_path / "missing.npz")]) == 2
