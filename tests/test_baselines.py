@@ -43,7 +43,7 @@ def _check_path(world, result, q_start, T_goal):
 def test_ompl_planner_solves_a_tabletop_case(world, case, name):
     q_start, goal, T_goal = case
     planner = OmplPlanner(world, name, resolution=0.02, seed=0)
-    limit = 0.5
+    limit = 1.0
     result = planner.plan(q_start, goal, time_limit_s=limit)
     _check_path(world, result, q_start, T_goal)
     assert result.info["motion_checks"] > 0
