@@ -1,0 +1,94 @@
+"""TrajOpt as a planner: a straight-line seed (the paper's baseline), or any planner's path as
+the seed (the paper's Table II combinations)."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from numpy.typing import NDArray
+
+from chekhov.collision.distance_terms import TrajectoryDistances
+from chekhov.errors import ChekhovError
+from chekhov.planners.base import Planner, PlanResult
+from chekhov.robot.goal import Goal
+from chekhov.trajopt.config import TrajOptConfig
+from chekhov.trajopt.problem import build_trajopt, goal_configuration, straight_line_seed
+from chekhov.trajopt.solver import solve_trajopt
+from chekhov.world import World
+
+Array = NDArray[np.float64]
+
+
+class TrajOptPlanner:
+    """TrajOpt from a straight line of ``config.n_waypoints`` waypoints (default 30) to the
+    collision-free IK solution of the goal pose nearest the start; the goal stays a pose
+    constraint during the optimisation."""
+
+    def __init__(self, world: World, config: TrajOptConfig | None = None,
+                 name: str = "TrajOpt") -> None:
+        self.world = world
+        self.config = config if config is not None else TrajOptConfig()
+        self.name = name
+        self._distances = TrajectoryDistances(world.fast)
+
+    def plan(self, q_start: Array, goal: Goal, time_limit_s: float = 10.0) -> PlanResult:
+        t0 = time.perf_counter()
+        try:
+            q_goal = goal_configuration(self.world, np.asarray(q_start, dtype=float), goal)
+        except ChekhovError as e:
+            return PlanResult(False, None, "no_ik", time.perf_counter() - t0,
+                              info={"error": str(e)})
+        t_ik = time.perf_counter() - t0
+        seed = straight_line_seed(q_start, q_goal, self.config.n_waypoints)
+        return _optimise(self.world, self.config, self._distances, q_start, goal, seed,
+                         time_limit_s, t0, {"ik": t_ik})
+
+
+class SeededTrajOpt:
+    """Any planner's path as the seed of TrajOpt (resampled to ≤ ``config.max_step_rad``)."""
+
+    def __init__(self, world: World, seed_planner: Planner,
+                 config: TrajOptConfig | None = None) -> None:
+        self.world = world
+        self.seed_planner = seed_planner
+        self.config = config if config is not None else TrajOptConfig()
+        self.name = f"{seed_planner.name}+TrajOpt"
+        self._distances = TrajectoryDistances(world.fast)
+
+    def plan(self, q_start: Array, goal: Goal, time_limit_s: float = 10.0) -> PlanResult:
+        t0 = time.perf_counter()
+        seeded = self.seed_planner.plan(q_start, goal, time_limit_s)
+        if not seeded.success or seeded.path is None:
+            return PlanResult(False, None, f"seed_{seeded.status}", time.perf_counter() - t0,
+                              timing_s={"seed": seeded.time_s}, info=dict(seeded.info))
+        remaining = max(time_limit_s - (time.perf_counter() - t0), 1e-3)
+        return _optimise(self.world, self.config, self._distances, q_start, goal, seeded.path,
+                         remaining, t0, {"seed": seeded.time_s})
+
+
+def _optimise(world: World, config: TrajOptConfig, distances: TrajectoryDistances,
+              q_start: Array, goal: Goal, seed: Array, time_limit_s: float, t0: float,
+              timing: dict[str, float]) -> PlanResult:
+    """Run TrajOpt on a seed and wrap the outcome as a PlanResult."""
+    cfg = config if config.time_limit_s <= time_limit_s else _with_time_limit(config,
+                                                                              time_limit_s)
+    try:
+        problem = build_trajopt(world, q_start, goal, seed, cfg, distances)
+    except ChekhovError as e:
+        return PlanResult(False, None, "bad_problem", time.perf_counter() - t0,
+                          info={"error": str(e)})
+    r = solve_trajopt(problem)
+    timing = {**timing, "optimise": r.optimise_s, "validate": r.timing_s["validate"]}
+    return PlanResult(
+        success=r.success, path=r.trajectory if r.success else None,
+        status="solved" if r.success else r.status, time_s=time.perf_counter() - t0,
+        timing_s=timing, seed=problem.seed,
+        info={"trajopt_status": r.status, "iterations": r.iterations,
+              "violations": r.violations, "trajectory": r.trajectory,
+              "trajopt_timing_s": r.timing_s})
+
+
+def _with_time_limit(config: TrajOptConfig, time_limit_s: float) -> TrajOptConfig:
+    from dataclasses import replace
+    return replace(config, time_limit_s=time_limit_s)

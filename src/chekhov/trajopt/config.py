@@ -1,0 +1,87 @@
+"""Settings of the trajectory optimiser."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+
+@dataclass(frozen=True)
+class TrajOptConfig:
+    """Settings of :func:`chekhov.trajopt.solve_trajopt`, TrajOpt's defaults where they apply.
+
+    Collision (m): terms are gathered for pairs closer than ``check_distance_m``; each is a
+    hinge penalty max(0, safety_margin_m - sd). The collision constraint counts as satisfied
+    when every term is at least ``min_clearance_m``.
+
+    Attributes:
+        n_waypoints: T of straight-line seeds.
+        max_step_rad: given seed paths are resampled so adjacent waypoints are at most this far
+            apart (joint-space L2, rad; the paper's 0.16).
+        terms_per_waypoint / terms_per_segment: closest pairs kept per waypoint (discrete)
+            and per segment (continuous, swept spheres).
+        continuous: use swept-sphere terms between waypoints (discrete terms then keep
+            self-collision only, as the swept terms include both ends).
+        joint_weights: per-joint weights of the smoothness cost Σ_t ||W (q_{t+1} - q_t)||²
+            (rad²); None for all ones.
+        collision_coeff, goal_coeff, limit_coeff, torque_coeff: scale of each penalty block
+            relative to the merit coefficient (per m, per m or rad, per rad, per N·m).
+        initial_penalty, penalty_increase, max_penalty_increases: the l1 merit coefficient μ,
+            raised by this factor while constraints are violated.
+        initial_trust_rad, trust_expand, trust_shrink, min_trust_rad: box trust region (rad).
+        improve_ratio_threshold: accept a step when true / model improvement exceeds it.
+        min_approx_improve, min_approx_improve_frac: convergence on the model improvement
+            (absolute, and relative to the merit).
+        max_iterations: QP solves in all.
+        duration_s: trajectory duration (s); enables velocity, acceleration and torque limits
+            with waypoints evenly spaced in time.
+        velocity_scale: fraction of the URDF velocity limits allowed (with duration_s).
+        acceleration_limit: rad/s², all joints (with duration_s); None for none.
+        torque_limits: penalise |τ| above the URDF effort limits (N·m, with duration_s), τ
+            from pinocchio's RNEA with finite-difference velocities and accelerations.
+        validate: re-check of the result: "exact" (pinocchio + coal, 100 substeps per
+            segment), "fast" (fast checker at the same substeps; conservative) or "none".
+        substeps: interpolated configurations per segment in the validation (paper: 100).
+        time_limit_s: wall-clock limit of the optimisation (s).
+        osqp_eps: OSQP's absolute and relative tolerances (each step's model improvement is
+            re-evaluated exactly at the returned point, so loose tolerances are safe).
+        proximal_weight: ρ of a proximal term ½ ρ ||x - x̄||² (1/rad²) added to each QP to make
+            it strongly convex (OSQP then converges in tens of iterations); not in the merit.
+        osqp_rho: OSQP's initial ADMM step size (tuned on these problems: 10 needs a third of
+            the iterations of OSQP's default 0.1).
+    """
+
+    n_waypoints: int = 30
+    max_step_rad: float = 0.16
+    safety_margin_m: float = 0.02
+    check_distance_m: float = 0.06
+    min_clearance_m: float = 0.002
+    terms_per_waypoint: int = 4
+    terms_per_segment: int = 8
+    continuous: bool = True
+    joint_weights: tuple[float, ...] | None = None
+    collision_coeff: float = 1.0
+    goal_coeff: float = 1.0
+    limit_coeff: float = 1.0
+    torque_coeff: float = 0.05
+    initial_penalty: float = 10.0
+    penalty_increase: float = 10.0
+    max_penalty_increases: int = 4
+    initial_trust_rad: float = 0.1
+    trust_expand: float = 1.5
+    trust_shrink: float = 0.1
+    min_trust_rad: float = 1e-4
+    improve_ratio_threshold: float = 0.25
+    min_approx_improve: float = 1e-4
+    min_approx_improve_frac: float = 1e-3
+    max_iterations: int = 60
+    duration_s: float | None = None
+    velocity_scale: float = 1.0
+    acceleration_limit: float | None = None
+    torque_limits: bool = True
+    validate: Literal["exact", "fast", "none"] = "exact"
+    substeps: int = 100
+    time_limit_s: float = 10.0
+    osqp_eps: float = 1e-3
+    proximal_weight: float = 0.1
+    osqp_rho: float = 10.0

@@ -1,0 +1,259 @@
+"""The convex subproblem of each SQP step, with a sparsity pattern fixed for the whole solve.
+
+Variables z = [x, s]: x the waypoints Q (T, K) flattened (fixed waypoints get equal bounds),
+s ≥ 0 the l1 slacks. The QP is
+
+    minimise   ½ xᵀ P x + μ Σ c_i s_i
+    subject to l ≤ A z ≤ u
+
+with P the smoothness Hessian, the identity rows of A holding the trust region ∩ joint limits,
+and one or two rows per penalised term (its linearisation plus its slack). Every row has a
+fixed set of columns, so between steps only the values of A, l, u and q change: OSQP is set up
+once per solve and updated in place (its KKT pattern and symbolic factorisation are reused).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import osqp
+import scipy.sparse as sp
+from numpy.typing import NDArray
+
+from chekhov.trajopt.problem import Evaluation, TrajOptProblem
+
+Array = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+INF = np.inf
+
+
+class _Rows:
+    """A block of rows with ``width`` variable columns each and one slack column each."""
+
+    def __init__(self, cols: IntArray, slack: IntArray, sense: IntArray, start: int,
+                 value_offset: int) -> None:
+        self.cols, self.slack, self.sense = cols, slack, sense  # sense +1: ≥ row, -1: ≤ row
+        self.start, self.value_offset = start, value_offset
+
+    @property
+    def n(self) -> int:
+        return int(self.cols.shape[0])
+
+    @property
+    def width(self) -> int:
+        return int(self.cols.shape[1])
+
+
+class TrajOptQP:
+    """The SQP subproblem of a :class:`TrajOptProblem`: pattern, values and the OSQP solver."""
+
+    def __init__(self, problem: TrajOptProblem) -> None:
+        self.problem = problem
+        cfg = problem.config
+        T, K = problem.n_waypoints, problem.dof
+        self.n_x = T * K
+        xi = np.arange(T * K, dtype=np.int64).reshape(T, K)
+        self._blocks: dict[str, _Rows] = {}
+        self._slack_coeff: list[Array] = []
+        self._n_slack = 0
+        self._rows = self.n_x  # identity rows for x first; slack identity rows at the end
+        self._values = 0
+        self._pattern: list[tuple[IntArray, IntArray]] = []
+        Cd = cfg.terms_per_waypoint
+        Cc = cfg.terms_per_segment if cfg.continuous else 0
+        # collision: one ≥ row and one slack per term
+        self._add("waypoint", np.repeat(xi, Cd, axis=0).reshape(T * Cd, K), 1,
+                  cfg.collision_coeff)
+        if T > 1 and Cc:
+            seg = np.concatenate([xi[:-1], xi[1:]], axis=1)
+            self._add("segment", np.repeat(seg, Cc, axis=0), 1, cfg.collision_coeff)
+        if problem.goal.is_pose:
+            self._add("goal", np.repeat(xi[-1:], 6, axis=0), 2, cfg.goal_coeff)
+        if problem.has_dynamics and T > 1:
+            pair = np.stack([xi[:-1].ravel(), xi[1:].ravel()], axis=1)
+            self._add("velocity", pair, 2, cfg.limit_coeff)
+            if T > 2:
+                trip = np.stack([xi[:-2].ravel(), xi[1:-1].ravel(), xi[2:].ravel()], axis=1)
+                self._add("acceleration", trip, 2, cfg.limit_coeff)
+        if problem.has_torque and T > 2:
+            win = np.concatenate([xi[:-2], xi[1:-1], xi[2:]], axis=1)  # (T-2, 3K)
+            self._add("torque", np.repeat(win, K, axis=0), 2, cfg.torque_coeff)
+        n_z = self.n_x + self._n_slack
+        self.n_z = n_z
+        self.slack_coeff = np.concatenate(self._slack_coeff) if self._slack_coeff else \
+            np.zeros(0)
+        # assemble the pattern: identity rows (x, then slacks), then each block's rows
+        ident_rows = np.r_[np.arange(self.n_x), self._rows + np.arange(self._n_slack)]
+        self.n_rows = self._rows + self._n_slack
+        rows = [ident_rows]
+        cols = [np.arange(n_z, dtype=np.int64)]
+        for r, c in self._pattern:
+            rows.append(r)
+            cols.append(c)
+        R = np.concatenate(rows)
+        Cn = np.concatenate(cols)
+        self._order = np.lexsort((R, Cn))
+        self._A_rows, self._A_cols = R, Cn
+        vals = np.zeros(len(R))
+        vals[:n_z] = 1.0
+        for name, b in self._blocks.items():
+            v = np.zeros((b.n, b.width + 1))
+            v[:, -1] = b.sense
+            if name == "velocity":
+                v[:, :2] = [-1.0, 1.0]
+            elif name == "acceleration":
+                v[:, :3] = [1.0, -2.0, 1.0]
+            vals[n_z + b.value_offset:n_z + b.value_offset + v.size] = v.ravel()
+        self._vals = vals
+        # smoothness Hessian: ½ xᵀ P x = Σ_t ||W (x_{t+1} - x_t)||²
+        D = sp.diags([-np.ones((T - 1) * K), np.ones((T - 1) * K)], [0, K],
+                     shape=((T - 1) * K, T * K))
+        W2 = sp.diags(np.tile(problem.weights**2, T - 1))
+        Px = (2 * D.T @ W2 @ D).tocsc()
+        self.Px = Px
+        # the proximal term ½ ρ ||x - x̄||² regularises each step (ADMM converges far faster
+        # on a strongly convex QP); the merit model used by the ratio test leaves it out
+        prox = sp.identity(T * K, format="csc") * problem.config.proximal_weight
+        self.P = sp.block_diag([Px + prox, sp.csc_matrix((self._n_slack, self._n_slack))],
+                               format="csc")
+        self.P = sp.triu(self.P, format="csc")
+        self._solver: osqp.OSQP | None = None
+        self._last_ev: Evaluation | None = None
+        self.admm_iterations = 0
+        self._l = np.zeros(self.n_rows)
+        self._u = np.zeros(self.n_rows)
+
+    def _add(self, name: str, var_cols: IntArray, rows_per_term: int, coeff: float) -> None:
+        """Add a block of terms; each term gets one slack and ``rows_per_term`` rows (1: a ≥
+        row; 2: a ≤ row then a ≥ row sharing the slack, for |a·x - c| ≤ tol)."""
+        n_terms, width = var_cols.shape
+        slack = self.n_x + self._n_slack + np.arange(n_terms, dtype=np.int64)
+        self._n_slack += n_terms
+        self._slack_coeff.append(np.full(n_terms, coeff))
+        cols = np.repeat(var_cols, rows_per_term, axis=0)
+        slk = np.repeat(slack, rows_per_term)
+        sense = np.tile([1] if rows_per_term == 1 else [-1, 1], n_terms).astype(np.int64)
+        n = len(cols)
+        start = self._rows
+        self._rows += n
+        full_cols = np.concatenate([cols, slk[:, None]], axis=1)
+        self._pattern.append((np.repeat(start + np.arange(n), width + 1), full_cols.ravel()))
+        offset = self._values  # after the identity values, which come first
+        self._blocks[name] = _Rows(cols, slk, sense, start, offset)
+        self._values += full_cols.size
+
+    # --- per-step values ----------------------------------------------------------------
+    def _fill(self, ev: Evaluation, x_bar: Array, trust: float, mu: float
+              ) -> tuple[Array, Array, Array, Array]:
+        p = self.problem
+        cfg = p.config
+        T, K = p.n_waypoints, p.dof
+        vals = self._vals
+        lo_, u = self._l, self._u
+        off0 = self.n_z  # identity values come first
+        Qb = x_bar.reshape(T, K)
+        # identity rows: trust region ∩ joint limits; fixed waypoints pinned
+        lo = np.maximum(np.tile(p.lower, T), x_bar - trust)
+        hi = np.minimum(np.tile(p.upper, T), x_bar + trust)
+        lo[:K] = hi[:K] = p.q_start
+        if p.fixed_goal:
+            lo[-K:] = hi[-K:] = Qb[-1]
+        lo_[:self.n_x], u[:self.n_x] = lo, hi
+        lo_[self._rows:], u[self._rows:] = 0.0, INF
+        d_safe = cfg.safety_margin_m
+        for name, b in self._blocks.items():
+            w = b.width
+            vb = vals[off0 + b.value_offset:off0 + b.value_offset + b.n * (w + 1)].reshape(
+                b.n, w + 1)
+            rs = slice(b.start, b.start + b.n)
+            if name == "waypoint":
+                g = ev.grad_waypoint.reshape(-1, K)
+                vb[:, :w] = g
+                lo_[rs] = d_safe - ev.dist_waypoint.ravel() + np.einsum(
+                    "tck,tk->tc", ev.grad_waypoint, Qb).ravel()
+                u[rs] = INF
+            elif name == "segment":
+                g = ev.grad_segment.reshape(-1, 2 * K)
+                vb[:, :w] = g
+                seg = np.concatenate([Qb[:-1], Qb[1:]], axis=1)
+                lo_[rs] = d_safe - ev.dist_segment.ravel() + np.einsum(
+                    "tck,tk->tc", ev.grad_segment, seg).ravel()
+                u[rs] = INF
+            else:
+                if name == "goal":
+                    A = ev.goal_jacobian
+                    c = A @ Qb[-1] - ev.goal_error
+                    tol = p.goal_tolerance
+                elif name == "velocity":
+                    A, c, tol = None, np.zeros(b.n // 2), p.velocity_limit
+                elif name == "acceleration":
+                    A, c, tol = None, np.zeros(b.n // 2), p.acceleration_limit
+                else:  # torque
+                    A = ev.torque_jacobian.reshape(-1, 3 * K)
+                    win = np.concatenate([Qb[:-2], Qb[1:-1], Qb[2:]], axis=1)
+                    c = np.einsum("tkj,tj->tk", ev.torque_jacobian, win).ravel() - \
+                        ev.torque.ravel()
+                    tol = p.torque_limit
+                if A is not None:
+                    vb[0::2, :w] = A
+                    vb[1::2, :w] = A
+                tol = np.resize(tol, len(c))
+                lo_[b.start:b.start + b.n:2], u[b.start:b.start + b.n:2] = -INF, c + tol
+                lo_[b.start + 1:b.start + b.n:2] = c - tol
+                u[b.start + 1:b.start + b.n:2] = INF
+        q = np.r_[-p.config.proximal_weight * x_bar, mu * self.slack_coeff]
+        return vals[self._order], lo_, u, q
+
+    def solve(self, ev: Evaluation, x_bar: Array, trust: float, mu: float
+              ) -> tuple[Array, float, str]:
+        """Solve the QP linearised at ev (x_bar = ev.Q flattened): (x, model objective, status).
+
+        The model objective is ½ xᵀPx + μ Σ c s, i.e. the merit of the linearised problem."""
+        Ax, lo_, u, q = self._fill(ev, x_bar, trust, mu)
+        relinearised = ev is not self._last_ev
+        self._last_ev = ev
+        if self._solver is None:
+            A = sp.csc_matrix((Ax, self._A_rows[self._order],
+                               np.r_[0, np.cumsum(np.bincount(self._A_cols, minlength=self.n_z))]),
+                              shape=(self.n_rows, self.n_z))
+            self._solver = osqp.OSQP()
+            eps = self.problem.config.osqp_eps
+            self._solver.setup(self.P, q, A, lo_, u, verbose=False, eps_abs=eps, eps_rel=eps,
+                               polishing=False, max_iter=4000, warm_starting=True,
+                               check_termination=5, scaling=0,
+                               rho=self.problem.config.osqp_rho)
+        elif relinearised:
+            self._solver.update(Ax=Ax, l=lo_, u=u, q=q)
+        else:  # trust-region shrink: same matrix, no refactorisation
+            self._solver.update(l=lo_, u=u, q=q)
+        if relinearised:  # start ADMM at the linearisation point and its violations
+            z0 = np.r_[x_bar, np.maximum(self._residual_slacks(x_bar, lo_, u), 0.0)]
+            self._solver.warm_start(x=z0)
+        res = self._solver.solve(raise_error=False)
+        self.admm_iterations += int(res.info.iter)
+        x = res.x
+        if x is None or not np.all(np.isfinite(x)):
+            return x_bar.copy(), np.inf, str(res.info.status)
+        xs = np.clip(x[:self.n_x], lo_[:self.n_x], u[:self.n_x])
+        s_model = np.maximum(self._residual_slacks(xs, lo_, u), 0.0)
+        obj = 0.5 * float(xs @ (self.Px @ xs)) \
+            + mu * float(self.slack_coeff @ s_model)
+        return xs, obj, str(res.info.status)
+
+    def _residual_slacks(self, x: Array, lo_: Array, u: Array) -> Array:
+        """The smallest slacks that make every block row hold at x: the linearised model's
+        violations (so the model objective is evaluated exactly at the clipped x)."""
+        s = np.zeros(self._n_slack)
+        Ax = np.zeros(self.n_rows)
+        vals = self._vals
+        off0 = self.n_z
+        for b in self._blocks.values():
+            w = b.width
+            vb = vals[off0 + b.value_offset:off0 + b.value_offset + b.n * (w + 1)].reshape(
+                b.n, w + 1)
+            ax = np.einsum("rw,rw->r", vb[:, :w], x[b.cols])
+            Ax[b.start:b.start + b.n] = ax
+            lo = lo_[b.start:b.start + b.n]
+            hi = u[b.start:b.start + b.n]
+            viol = np.where(b.sense > 0, lo - ax, ax - hi)
+            np.maximum.at(s, b.slack - self.n_x, viol)
+        return s

@@ -1,0 +1,56 @@
+"""What the trajectory optimiser returns."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from chekhov.planners.base import path_length
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class TrajOptResult:
+    """Outcome of :func:`chekhov.trajopt.solve_trajopt`.
+
+    Attributes:
+        trajectory: optimised waypoints (T, K), rad; the first row is the start.
+        status: "converged", "iteration_limit" (both successes), "infeasible" (constraints
+            still violated after the last penalty increase) or "collision" (the validation found
+            a collision: never returned as a success).
+        success: status is "converged" or "iteration_limit" and the validation passed.
+        valid: result of the validation (None when validation is "none").
+        costs: final values: "smoothness" (rad²), "merit".
+        violations: final constraint violations: "collision_m" (largest hinge below
+            min_clearance_m), "goal_position_m", "goal_orientation_rad", "velocity_rad",
+            "acceleration_rad", "torque_nm" (0 when satisfied or absent).
+        iterations: QP solves. penalty_increases: times μ was raised.
+        timing_s: seconds in "collision" (distance terms), "linearise" (goal, torque, QP
+            values), "qp" (OSQP), "validate", "other", and "total".
+        seed: the seed trajectory (T, K).
+    """
+
+    trajectory: Array
+    status: str
+    success: bool
+    valid: bool | None
+    costs: dict[str, float]
+    violations: dict[str, float]
+    iterations: int
+    penalty_increases: int
+    timing_s: dict[str, float]
+    seed: Array
+    info: dict[str, object] = field(default_factory=dict)
+
+    @property
+    def path_length(self) -> float:
+        """Joint-space length of the trajectory (rad)."""
+        return path_length(self.trajectory)
+
+    @property
+    def optimise_s(self) -> float:
+        """Time spent optimising, without the validation (s)."""
+        return self.timing_s["total"] - self.timing_s.get("validate", 0.0)

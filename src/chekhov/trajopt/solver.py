@@ -1,0 +1,98 @@
+"""The TrajOpt algorithm: l1-penalty SQP with a box trust region (Schulman et al. 2014, Alg. 1).
+
+    for each penalty coefficient μ = μ₀, kμ₀, k²μ₀, …:
+        repeat:  convexify at x̄ (distance terms, goal and torque Jacobians)
+                 repeat:  solve the QP in the trust box; ratio = true / model merit improvement
+                          accept and grow the box if ratio > c, else shrink it
+        until the model improvement or the box is tiny
+        stop when every constraint holds
+"""
+
+from __future__ import annotations
+
+import time
+
+from chekhov.collision.exact import densify
+from chekhov.trajopt.problem import TrajOptProblem
+from chekhov.trajopt.qp import TrajOptQP
+from chekhov.trajopt.result import TrajOptResult
+
+
+def solve_trajopt(problem: TrajOptProblem) -> TrajOptResult:
+    """Optimise the problem's seed; validate the result as ``config.validate`` says.
+
+    A result that fails the validation gets status "collision" and ``success`` False.
+    """
+    cfg = problem.config
+    t_start = time.perf_counter()
+    deadline = t_start + cfg.time_limit_s
+    timing = {"collision": 0.0, "linearise": 0.0, "qp": 0.0, "validate": 0.0}
+    T, K = problem.n_waypoints, problem.dof
+    qp = TrajOptQP(problem)
+    x = problem.seed.ravel().copy()
+    ev = problem.evaluate(problem.seed, timing)
+    mu = cfg.initial_penalty
+    trust = cfg.initial_trust_rad
+    iterations = penalty_increases = 0
+    converged = False
+    out_of_budget = False
+    for _ in range(cfg.max_penalty_increases + 1):
+        converged = False
+        while True:
+            merit_old = problem.merit(ev, mu)
+            accepted = False
+            while trust >= cfg.min_trust_rad:
+                if iterations >= cfg.max_iterations or time.perf_counter() > deadline:
+                    out_of_budget = True
+                    break
+                t0 = time.perf_counter()
+                x_new, model, _ = qp.solve(ev, x, trust, mu)
+                timing["qp"] += time.perf_counter() - t0
+                iterations += 1
+                approx = merit_old - model
+                if approx < cfg.min_approx_improve or \
+                        approx < cfg.min_approx_improve_frac * abs(merit_old):
+                    converged = True
+                    break
+                ev_new = problem.evaluate(x_new.reshape(T, K), timing)
+                exact = merit_old - problem.merit(ev_new, mu)
+                if exact > cfg.improve_ratio_threshold * approx:
+                    x, ev = x_new, ev_new
+                    trust *= cfg.trust_expand
+                    accepted = True
+                    break
+                trust *= cfg.trust_shrink
+            if trust < cfg.min_trust_rad:
+                converged = True
+            if converged or out_of_budget or not accepted:
+                break
+        if out_of_budget or problem.satisfied(ev):
+            break
+        if penalty_increases == cfg.max_penalty_increases:
+            break
+        mu *= cfg.penalty_increase
+        penalty_increases += 1
+        trust = max(trust, cfg.initial_trust_rad)
+    Q = x.reshape(T, K)
+    satisfied = problem.satisfied(ev)
+    status = ("converged" if converged else "iteration_limit") if satisfied else "infeasible"
+    valid: bool | None = None
+    t0 = time.perf_counter()
+    if satisfied and cfg.validate != "none":
+        if cfg.validate == "exact":
+            valid = problem.world.exact.path_valid(Q, substeps=cfg.substeps)
+        else:
+            valid = bool(problem.world.fast.valid(densify(Q, cfg.substeps)).all())
+        if not valid:
+            status = "collision"
+    timing["validate"] = time.perf_counter() - t0
+    total = time.perf_counter() - t_start
+    timing["other"] = max(0.0, total - sum(timing.values()))
+    timing["total"] = total
+    return TrajOptResult(
+        trajectory=Q, status=status, success=status in ("converged", "iteration_limit"),
+        valid=valid, costs={"smoothness": problem.smoothness(Q),
+                            "merit": problem.merit(ev, mu)},
+        violations=problem.constraint_report(ev), iterations=iterations,
+        penalty_increases=penalty_increases, timing_s=timing, seed=problem.seed,
+        info={"penalty": mu, "trust_rad": trust})

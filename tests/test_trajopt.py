@@ -1,0 +1,169 @@
+"""TrajOpt: derivatives against finite differences, the QP step, pushing a path out of an
+obstacle, and clear errors."""
+
+import numpy as np
+import pytest
+
+from chekhov.collision.distance_terms import TrajectoryDistances
+from chekhov.planners.base import path_length
+from chekhov.robot.goal import Goal
+from chekhov.trajopt.config import TrajOptConfig
+from chekhov.trajopt.problem import TrajOptError, build_trajopt, straight_line_seed
+from chekhov.trajopt.qp import TrajOptQP
+from chekhov.trajopt.solver import solve_trajopt
+
+EPS = 1e-6
+
+
+@pytest.fixture(scope="module")
+def pole(world_of):
+    return world_of("tabletop_pole")
+
+
+def _free(world, rng, n):
+    Q = world.robot.sample_uniform(rng, 50 * n)
+    return Q[world.fast.valid(Q)][:n]
+
+
+def test_waypoint_distance_gradients_match_finite_differences(pole, rng):
+    td = TrajectoryDistances(pole.fast)
+    Q = pole.robot.sample_uniform(rng, 40)
+    d, g = td.waypoints(Q, 0.1, 4)
+    checked = 0
+    for t in range(len(Q)):
+        for k in np.flatnonzero(d[t] < 1):
+            fd = np.array([(td.waypoints((Q[t] + e)[None], 0.1, 4)[0][0, k]
+                            - td.waypoints((Q[t] - e)[None], 0.1, 4)[0][0, k]) / (2 * EPS)
+                           for e in np.eye(7) * EPS])
+            np.testing.assert_allclose(g[t, k], fd, atol=1e-6)
+            checked += 1
+    assert checked > 10
+
+
+def test_swept_distance_gradients_match_finite_differences(pole, rng):
+    td = TrajectoryDistances(pole.fast)
+    Q = pole.robot.sample_uniform(rng, 4)
+    P = np.vstack([np.linspace(Q[i], Q[i + 1], 6)[:-1] for i in range(3)])
+    d, g0, g1 = td.segments(P, 0.1, 4)
+    checked = 0
+    for t in range(len(P) - 1):
+        for k in np.flatnonzero(d[t] < 1):
+            for which, g in ((0, g0), (1, g1)):
+                fd = np.zeros(7)
+                for j, e in enumerate(np.eye(7) * EPS):
+                    A, B = P[t:t + 2].copy(), P[t:t + 2].copy()
+                    A[which] += e
+                    B[which] -= e
+                    fd[j] = (td.segments(A, 0.1, 4)[0][0, k]
+                             - td.segments(B, 0.1, 4)[0][0, k]) / (2 * EPS)
+                np.testing.assert_allclose(g[t, k], fd, atol=1e-5)
+                checked += 1
+    assert checked > 4
+
+
+def test_batched_distance_terms_equal_looped(pole, rng):
+    td = TrajectoryDistances(pole.fast)
+    Q = pole.robot.sample_uniform(rng, 20)
+    d, g = td.waypoints(Q, 0.1, 4)
+    for t in range(len(Q)):
+        dt_, gt = td.waypoints(Q[t:t + 1], 0.1, 4)
+        np.testing.assert_array_equal(d[t], dt_[0])
+        np.testing.assert_array_equal(g[t], gt[0])
+
+
+def test_goal_error_jacobian_matches_finite_differences(pole, rng):
+    q0, q1 = _free(pole, rng, 2)
+    T_goal = pole.robot.compute_ee_pose(q1)
+    prob = build_trajopt(pole, q0, Goal.pose(T_goal), straight_line_seed(q0, q1, 5))
+    q = q1 + 0.05 * rng.standard_normal(7)
+    e, J = prob.compute_goal_error(q)
+    fd = np.stack([(prob.compute_goal_error(q + d)[0] - prob.compute_goal_error(q - d)[0])
+                   / (2 * EPS) for d in np.eye(7) * EPS], axis=1)
+    np.testing.assert_allclose(J, fd, atol=1e-6)
+    assert np.linalg.norm(prob.compute_goal_error(q1)[0]) < 1e-9
+
+
+def test_torque_jacobian_matches_finite_differences(pole, rng):
+    q0, q1 = _free(pole, rng, 2)
+    cfg = TrajOptConfig(duration_s=2.0)
+    prob = build_trajopt(pole, q0, Goal.configuration(q1), straight_line_seed(q0, q1, 6), cfg)
+    Q = prob.seed + 0.01 * rng.standard_normal(prob.seed.shape)
+    tau, jac = prob.compute_torques(Q)
+    assert tau.shape == (len(Q) - 2, 7) and np.all(np.isfinite(tau))
+    for i in range(3):
+        for w in range(3):
+            for j in range(7):
+                A, B = Q.copy(), Q.copy()
+                A[i + w, j] += EPS
+                B[i + w, j] -= EPS
+                fd = (prob.compute_torques(A)[0][i] - prob.compute_torques(B)[0][i]) / (2 * EPS)
+                np.testing.assert_allclose(jac[i, :, 7 * w + j], fd, atol=1e-4, rtol=1e-5)
+
+
+def test_qp_step_decreases_cost_on_an_unconstrained_problem(pole, rng):
+    """A zig-zag seed with collision terms off: one QP step in a wide trust region reaches the
+    optimum (an evenly spaced straight line), and the model predicts the merit there."""
+    q0, q1 = _free(pole, rng, 2)
+    seed = straight_line_seed(q0, q1, 12)
+    seed[1:-1] += 0.05 * np.where(np.arange(10) % 2, 1, -1)[:, None]
+    cfg = TrajOptConfig(safety_margin_m=0.0, check_distance_m=-1.0, osqp_eps=1e-6,
+                        proximal_weight=0.0)
+    prob = build_trajopt(pole, q0, Goal.configuration(q1), seed, cfg)
+    qp = TrajOptQP(prob)
+    ev = prob.evaluate(prob.seed)
+    x, model, status = qp.solve(ev, prob.seed.ravel(), 1.0, 10.0)
+    assert status == "solved"
+    after = prob.smoothness(x.reshape(prob.seed.shape))
+    optimum = float(np.sum((q1 - q0) ** 2)) / (len(prob.seed) - 1)  # evenly spaced line
+    assert after < prob.smoothness(prob.seed)
+    assert after == pytest.approx(optimum, rel=1e-3)
+    assert model == pytest.approx(prob.merit(prob.evaluate(x.reshape(prob.seed.shape)), 10.0),
+                                  rel=1e-3)
+
+
+def test_straight_line_through_the_pole_is_pushed_out(pole, rng):
+    """Start and goal on either side of the pole: the straight line collides, TrajOpt's
+    result is collision-free by the exact checker at 100 substeps."""
+    Q = _free(pole, rng, 400)
+    for i in range(0, len(Q) - 1, 2):
+        seed = straight_line_seed(Q[i], Q[i + 1], 30)
+        if not pole.fast.path_valid(seed) and not pole.exact.path_valid(seed, 10):
+            break
+    else:
+        pytest.skip("no colliding straight line found")
+    prob = build_trajopt(pole, Q[i], Goal.configuration(Q[i + 1]), seed)
+    r = solve_trajopt(prob)
+    if r.success:
+        assert r.valid and pole.exact.path_valid(r.trajectory, substeps=100)
+        assert np.allclose(r.trajectory[0], Q[i]) and np.allclose(r.trajectory[-1], Q[i + 1])
+    else:  # a failure is never a colliding success
+        assert r.status in ("infeasible", "collision")
+    # at least the collision penalty must have gone down
+    assert r.violations["collision_m"] < prob.constraint_report(prob.evaluate(seed))[
+        "collision_m"] + 1e-9
+
+
+def test_pose_goal_is_reached_within_tolerance(pole, rng):
+    q0, q1 = _free(pole, rng, 2)
+    goal = Goal.pose(pole.robot.compute_ee_pose(q1))
+    r = solve_trajopt(build_trajopt(pole, q0, goal))
+    assert r.success, r.status
+    T = pole.robot.compute_ee_pose(r.trajectory[-1])
+    assert np.linalg.norm(T[:3, 3] - goal.T_world_ee[:3, 3]) <= goal.position_tolerance + 1e-6
+    assert path_length(r.trajectory) > 0
+
+
+def test_bad_input_gets_a_clear_error(pole, rng):
+    q0, q1 = _free(pole, rng, 2)
+    with pytest.raises(TrajOptError, match="seed: expected shape"):
+        build_trajopt(pole, q0, Goal.configuration(q1), np.zeros((5, 6)))
+    bad = straight_line_seed(q0, q1, 5)
+    bad[2, 3] = np.nan
+    with pytest.raises(TrajOptError, match="NaN"):
+        build_trajopt(pole, q0, Goal.configuration(q1), bad)
+    far = np.eye(4)
+    far[:3, 3] = [5.0, 5.0, 5.0]
+    with pytest.raises(TrajOptError, match="beyond its reach"):
+        build_trajopt(pole, q0, Goal.pose(far))
+    with pytest.raises(TrajOptError, match="start configuration"):
+        build_trajopt(pole, q0[:5], Goal.configuration(q1))
