@@ -76,7 +76,7 @@ def test_goal_error_jacobian_matches_finite_differences(pole, rng):
     T_goal = pole.robot.compute_ee_pose(q1)
     prob = build_trajopt(pole, q0, Goal.pose(T_goal), straight_line_seed(q0, q1, 5))
     q = q1 + 0.05 * rng.standard_normal(7)
-    e, J = prob.compute_goal_error(q)
+    _, J = prob.compute_goal_error(q)
     fd = np.stack([(prob.compute_goal_error(q + d)[0] - prob.compute_goal_error(q - d)[0])
                    / (2 * EPS) for d in np.eye(7) * EPS], axis=1)
     np.testing.assert_allclose(J, fd, atol=1e-6)

@@ -73,7 +73,7 @@ class TrajOptConfig:
     min_trust_rad: float = 1e-4
     improve_ratio_threshold: float = 0.25
     min_approx_improve: float = 1e-4
-    min_approx_improve_frac: float = 1e-3
+    min_approx_improve_frac: float = 1e-2
     max_iterations: int = 60
     duration_s: float | None = None
     velocity_scale: float = 1.0

@@ -46,7 +46,11 @@ class _Rows:
 class TrajOptQP:
     """The SQP subproblem of a :class:`TrajOptProblem`: pattern, values and the OSQP solver."""
 
-    def __init__(self, problem: TrajOptProblem) -> None:
+    def __init__(self, problem: TrajOptProblem, waypoint_capacity: IntArray | None = None,
+                 segment_capacity: IntArray | None = None) -> None:
+        """``waypoint_capacity`` (T,) / ``segment_capacity`` (T-1,): collision rows kept per
+        waypoint / segment (at most terms_per_waypoint / terms_per_segment; all by default).
+        Far from obstacles most are 0, which keeps the QP small."""
         self.problem = problem
         cfg = problem.config
         T, K = problem.n_waypoints, problem.dof
@@ -60,12 +64,19 @@ class TrajOptQP:
         self._pattern: list[tuple[IntArray, IntArray]] = []
         Cd = cfg.terms_per_waypoint
         Cc = cfg.terms_per_segment if cfg.continuous else 0
+        cap_w = np.full(T, Cd) if waypoint_capacity is None else np.minimum(waypoint_capacity, Cd)
+        cap_s = np.full(T - 1, Cc) if segment_capacity is None else \
+            np.minimum(segment_capacity, Cc)
+        self.waypoint_capacity = cap_w.astype(np.int64)
+        self.segment_capacity = cap_s.astype(np.int64)
+        self._wp_t, self._wp_k = _term_index(self.waypoint_capacity)
+        self._seg_t, self._seg_k = _term_index(self.segment_capacity)
         # collision: one ≥ row and one slack per term
-        self._add("waypoint", np.repeat(xi, Cd, axis=0).reshape(T * Cd, K), 1,
-                  cfg.collision_coeff)
-        if T > 1 and Cc:
+        if len(self._wp_t):
+            self._add("waypoint", xi[self._wp_t], 1, cfg.collision_coeff)
+        if len(self._seg_t):
             seg = np.concatenate([xi[:-1], xi[1:]], axis=1)
-            self._add("segment", np.repeat(seg, Cc, axis=0), 1, cfg.collision_coeff)
+            self._add("segment", seg[self._seg_t], 1, cfg.collision_coeff)
         if problem.goal.is_pose:
             self._add("goal", np.repeat(xi[-1:], 6, axis=0), 2, cfg.goal_coeff)
         if problem.has_dynamics and T > 1:
@@ -166,17 +177,17 @@ class TrajOptQP:
                 b.n, w + 1)
             rs = slice(b.start, b.start + b.n)
             if name == "waypoint":
-                g = ev.grad_waypoint.reshape(-1, K)
+                t, k = self._wp_t, self._wp_k
+                g = ev.grad_waypoint[t, k]
                 vb[:, :w] = g
-                lo_[rs] = d_safe - ev.dist_waypoint.ravel() + np.einsum(
-                    "tck,tk->tc", ev.grad_waypoint, Qb).ravel()
+                lo_[rs] = d_safe - ev.dist_waypoint[t, k] + np.einsum("rk,rk->r", g, Qb[t])
                 u[rs] = INF
             elif name == "segment":
-                g = ev.grad_segment.reshape(-1, 2 * K)
+                t, k = self._seg_t, self._seg_k
+                g = ev.grad_segment[t, k]
                 vb[:, :w] = g
                 seg = np.concatenate([Qb[:-1], Qb[1:]], axis=1)
-                lo_[rs] = d_safe - ev.dist_segment.ravel() + np.einsum(
-                    "tck,tk->tc", ev.grad_segment, seg).ravel()
+                lo_[rs] = d_safe - ev.dist_segment[t, k] + np.einsum("rk,rk->r", g, seg[t])
                 u[rs] = INF
             else:
                 if name == "goal":
@@ -239,6 +250,12 @@ class TrajOptQP:
             + mu * float(self.slack_coeff @ s_model)
         return xs, obj, str(res.info.status)
 
+    def fits(self, ev: Evaluation) -> bool:
+        """Whether every term with a gradient at ev has a row (else rebuild with
+        :func:`term_counts`)."""
+        w, s = term_counts(ev)
+        return bool(np.all(w <= self.waypoint_capacity) and np.all(s <= self.segment_capacity))
+
     def _residual_slacks(self, x: Array, lo_: Array, u: Array) -> Array:
         """The smallest slacks that make every block row hold at x: the linearised model's
         violations (so the model objective is evaluated exactly at the clipped x)."""
@@ -257,3 +274,17 @@ class TrajOptQP:
             viol = np.where(b.sense > 0, lo - ax, ax - hi)
             np.maximum.at(s, b.slack - self.n_x, viol)
         return s
+
+
+def term_counts(ev: Evaluation) -> tuple[IntArray, IntArray]:
+    """Collision terms within the check distance per waypoint (T,) and per segment (T-1,)
+    (the kernels sort them first; unused slots hold 1e3)."""
+    return ((ev.dist_waypoint < 1e2).sum(axis=1).astype(np.int64),
+            (ev.dist_segment < 1e2).sum(axis=1).astype(np.int64))
+
+
+def _term_index(capacity: IntArray) -> tuple[IntArray, IntArray]:
+    """(waypoint or segment, slot) of each row for the given capacities."""
+    t = np.repeat(np.arange(len(capacity), dtype=np.int64), capacity)
+    starts = np.repeat(np.cumsum(capacity) - capacity, capacity)
+    return t, np.arange(len(t), dtype=np.int64) - starts

@@ -12,9 +12,11 @@ from __future__ import annotations
 
 import time
 
+import numpy as np
+
 from chekhov.collision.exact import densify
-from chekhov.trajopt.problem import TrajOptProblem
-from chekhov.trajopt.qp import TrajOptQP
+from chekhov.trajopt.problem import Evaluation, TrajOptProblem
+from chekhov.trajopt.qp import TrajOptQP, term_counts
 from chekhov.trajopt.result import TrajOptResult
 
 
@@ -28,9 +30,10 @@ def solve_trajopt(problem: TrajOptProblem) -> TrajOptResult:
     deadline = t_start + cfg.time_limit_s
     timing = {"collision": 0.0, "linearise": 0.0, "qp": 0.0, "validate": 0.0}
     T, K = problem.n_waypoints, problem.dof
-    qp = TrajOptQP(problem)
     x = problem.seed.ravel().copy()
     ev = problem.evaluate(problem.seed, timing)
+    qp = _sized_qp(problem, ev, None)
+    rebuilds = 0
     mu = cfg.initial_penalty
     trust = cfg.initial_trust_rad
     iterations = penalty_increases = 0
@@ -46,6 +49,9 @@ def solve_trajopt(problem: TrajOptProblem) -> TrajOptResult:
                     out_of_budget = True
                     break
                 t0 = time.perf_counter()
+                if not qp.fits(ev):  # more terms than rows: a larger pattern, set up anew
+                    qp = _sized_qp(problem, ev, qp)
+                    rebuilds += 1
                 x_new, model, _ = qp.solve(ev, x, trust, mu)
                 timing["qp"] += time.perf_counter() - t0
                 iterations += 1
@@ -95,4 +101,19 @@ def solve_trajopt(problem: TrajOptProblem) -> TrajOptResult:
                             "merit": problem.merit(ev, mu)},
         violations=problem.constraint_report(ev), iterations=iterations,
         penalty_increases=penalty_increases, timing_s=timing, seed=problem.seed,
-        info={"penalty": mu, "trust_rad": trust})
+        info={"penalty": mu, "trust_rad": trust, "qp_rebuilds": rebuilds,
+              "admm_iterations": qp.admm_iterations})
+
+
+def _sized_qp(problem: TrajOptProblem, ev: Evaluation, old: TrajOptQP | None) -> TrajOptQP:
+    """A QP with room for every term at ev plus ``_HEADROOM`` per waypoint and segment (terms
+    appear as the trajectory moves), and at least the old capacities."""
+    w, s = term_counts(ev)
+    w, s = w + _HEADROOM, s + _HEADROOM
+    if old is not None:
+        w = np.maximum(w, old.waypoint_capacity)
+        s = np.maximum(s, old.segment_capacity)
+    return TrajOptQP(problem, w, s)
+
+
+_HEADROOM = 1
