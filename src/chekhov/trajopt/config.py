@@ -39,8 +39,10 @@ class TrajOptConfig:
         acceleration_limit: rad/s², all joints (with duration_s); None for none.
         torque_limits: penalise |τ| above the URDF effort limits (N·m, with duration_s), τ
             from pinocchio's RNEA with finite-difference velocities and accelerations.
-        validate: re-check of the result: "exact" (pinocchio + coal, 100 substeps per
-            segment), "fast" (fast checker at the same substeps; conservative) or "none".
+        validate: re-check of the result at ``substeps`` per segment: "exact" (the exact
+            checker's decision; the fast checker screens first and coal runs only on its
+            alarms, see :func:`chekhov.trajopt.solver.validate_path`), "exact_full" (coal on
+            every configuration), "fast" (fast checker alone; conservative) or "none".
         substeps: interpolated configurations per segment in the validation (paper: 100).
         time_limit_s: wall-clock limit of the optimisation (s).
         osqp_eps: OSQP's absolute and relative tolerances (each step's model improvement is
@@ -79,7 +81,7 @@ class TrajOptConfig:
     velocity_scale: float = 1.0
     acceleration_limit: float | None = None
     torque_limits: bool = True
-    validate: Literal["exact", "fast", "none"] = "exact"
+    validate: Literal["exact", "exact_full", "fast", "none"] = "exact"
     substeps: int = 100
     time_limit_s: float = 10.0
     osqp_eps: float = 1e-3

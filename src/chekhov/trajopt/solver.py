@@ -13,11 +13,15 @@ from __future__ import annotations
 import time
 
 import numpy as np
+from numpy.typing import NDArray
 
 from chekhov.collision.exact import densify
 from chekhov.trajopt.problem import Evaluation, TrajOptProblem
 from chekhov.trajopt.qp import TrajOptQP, term_counts
 from chekhov.trajopt.result import TrajOptResult
+from chekhov.world import World
+
+Array = NDArray[np.float64]
 
 
 def solve_trajopt(problem: TrajOptProblem) -> TrajOptResult:
@@ -85,10 +89,7 @@ def solve_trajopt(problem: TrajOptProblem) -> TrajOptResult:
     valid: bool | None = None
     t0 = time.perf_counter()
     if satisfied and cfg.validate != "none":
-        if cfg.validate == "exact":
-            valid = problem.world.exact.path_valid(Q, substeps=cfg.substeps)
-        else:
-            valid = bool(problem.world.fast.valid(densify(Q, cfg.substeps)).all())
+        valid = validate_path(problem.world, Q, cfg.validate, cfg.substeps)
         if not valid:
             status = "collision"
     timing["validate"] = time.perf_counter() - t0
@@ -103,6 +104,22 @@ def solve_trajopt(problem: TrajOptProblem) -> TrajOptResult:
         penalty_increases=penalty_increases, timing_s=timing, seed=problem.seed,
         info={"penalty": mu, "trust_rad": trust, "qp_rebuilds": rebuilds,
               "admm_iterations": qp.admm_iterations})
+
+
+def validate_path(world: World, path: Array, mode: str = "exact", substeps: int = 100) -> bool:
+    """Whether a path (T, K) is collision-free at its waypoints and ``substeps`` interpolated
+    configurations per segment (the paper's check).
+
+    "exact_full": the exact checker (pinocchio + coal) on every configuration. "exact": the
+    same decision, faster: the fast checker first looks at the same configurations and, since
+    its spheres contain the robot's collision geometry (fast free ⇒ exact free), the exact
+    checker runs only when the fast one reports a collision. "fast": the fast checker alone.
+    """
+    if mode == "exact_full":
+        return world.exact.path_valid(path, substeps=substeps)
+    if bool(world.fast.valid(densify(path, substeps)).all()):
+        return True
+    return mode == "exact" and world.exact.path_valid(path, substeps=substeps)
 
 
 def _sized_qp(problem: TrajOptProblem, ev: Evaluation, old: TrajOptQP | None) -> TrajOptQP:
