@@ -44,8 +44,11 @@ def test_min_distance_agrees_with_validity(world_of, rng):
     Q = w.robot.sample_uniform(rng, 2000)
     d = w.fast.min_distance(Q)
     v = w.fast.valid(Q)
-    clear = np.abs(d) > 1e-6
-    assert np.array_equal(v[clear], d[clear] > 0)
+    # spheres apart prove the configuration free; sphere overlaps are confirmed on the
+    # covered geometry, so an overlap may still be free
+    assert np.all(v[d > 1e-6])
+    assert np.all(d[~v] < 1e-6)
+    assert np.any(v & (d < -1e-6))
 
 
 def test_contacts_normals_match_finite_differences(world_of, rng):
@@ -162,3 +165,32 @@ def test_exact_path_check_equals_checking_every_configuration(world_of, scene):
         assert w.exact.path_valid(P, substeps) == (brute is None)
         found[brute is None] += 1
     assert found[True] >= 5 and found[False] >= 5, found
+
+
+def test_primitive_confirmation_never_misses_a_coal_collision():
+    """The fast checker's exact primitive test (GJK with a support-value certificate) says
+    'collision' whenever coal finds the two primitives closer than the padding."""
+    import coal
+    from scipy.spatial.transform import Rotation
+
+    from chekhov.collision.gjk import primitives_collide
+
+    rng = np.random.default_rng(5)
+    shapes = [lambda s: coal.Sphere(s[0]), lambda s: coal.Box(*(2 * s)),
+              lambda s: coal.Cylinder(s[0], 2 * s[1])]
+    pad, free_found = 0.001, 0
+    for i in range(3000):
+        ka, kb = rng.integers(0, 3, 2)
+        sa, sb = rng.uniform(0.005, 0.2, 3), rng.uniform(0.005, 0.2, 3)
+        Ra, Rb = Rotation.random(2, random_state=i).as_matrix()
+        pa, pb = rng.normal(scale=0.2, size=3), rng.normal(scale=0.2, size=3)
+        d = coal.distance(shapes[ka](sa), coal.Transform3s(Ra, pa), shapes[kb](sb),
+                          coal.Transform3s(Rb, pb), coal.DistanceRequest(),
+                          coal.DistanceResult())
+        hit = primitives_collide(ka, Ra, pa, sa, kb, Rb, pb, sb, pad)
+        if d < pad - 1e-7:
+            assert hit, (i, d)
+        elif d > pad + 1e-4:
+            free_found += 1
+            assert not hit, (i, d)
+    assert free_found > 1000

@@ -10,11 +10,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from itertools import pairwise
 
+import coal
 import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from chekhov.collision import kernels
+from chekhov.collision import kernels, validity
 from chekhov.collision.grid import build_grid
 from chekhov.collision.primitives import Primitive, geometry_primitives, pack, shape_primitive
 from chekhov.errors import RobotError
@@ -79,8 +80,10 @@ class FastChecker:
     Configurations are arrays of shape (K,) or (N, K) in radians. Obstacles from the scene
     (static and dynamic) are named; dynamic ones can be added, moved and removed at run time
     without rebuilding anything else; ``obstacles_version`` counts those changes, so callers
-    can tell when cached validity results went stale. Static obstacles and fixed robot parts are compiled once
-    into distance grids (``grid_spacing`` m) that clear most spheres with one lookup.
+    can tell when cached validity results went stale. Static obstacles and fixed robot parts
+    are compiled once into distance grids (``grid_spacing`` m) that clear most spheres with one
+    lookup. A sphere hit is confirmed on the covered geometry itself when it is a primitive
+    (see ``validity.py``), so the spheres' overhang past the geometry raises no false alarms.
     """
 
     def __init__(self, robot: Robot, scene: Scene | None = None,
@@ -100,6 +103,7 @@ class FastChecker:
                        for i, (a, b) in enumerate(pairwise(starts))])
         gj = np.array([sp.joints[a] for a in starts[:-1]], dtype=np.int64)
         self._groups = (np.array(starts, dtype=np.int64), gc, gr, gj)
+        self._gexact, self._rin = exact_geometry(robot, geoms, sp)
         group_of = {g: i for i, g in enumerate(geoms)}
         # fixed robot parts and self-collision pairs, from the robot's pair list
         fixed: list[Primitive] = []
@@ -217,7 +221,8 @@ class FastChecker:
     # --- checks -------------------------------------------------------------------------
     def _args(self) -> tuple:
         return (self._chain, self._sphere_arrays, self._groups, self._static, self._dyn,
-                self._fixed, self._fixed_csr, self._self_pairs, self._grids)
+                self._fixed, self._fixed_csr, self._self_pairs, self._grids, self._gexact,
+                self._rin)
 
     def _exact_args(self) -> tuple:
         return (self._chain, self._sphere_arrays, self._groups, self._env, self._fixed,
@@ -232,7 +237,7 @@ class FastChecker:
 
     def valid(self, Q: Array) -> BoolArray:
         """Collision-free flag for each configuration; Q (N, K) → (N,)."""
-        return kernels.valid_batch(self._as_batch(Q), *self._args())
+        return validity.valid_batch(self._as_batch(Q), *self._args())
 
     def is_valid(self, q: Array) -> bool:
         """Whether one configuration (K,) is collision-free."""
@@ -242,7 +247,7 @@ class FastChecker:
         """Whether each straight motion Q0[i] → Q1[i] is free at every ``resolution`` (rad)
         step of joint-space distance; end points are not checked."""
         Q0, Q1 = self._as_batch(Q0), self._as_batch(Q1)
-        return kernels.motions_valid(Q0, Q1, float(resolution), *self._args())
+        return validity.motions_valid(Q0, Q1, float(resolution), *self._args())
 
     def motion_valid(self, q0: Array, q1: Array, resolution: float = 0.02) -> bool:
         """Whether the straight motion q0 → q1 and both end points are collision-free."""
@@ -276,6 +281,42 @@ class FastChecker:
         Rb, pb = np.empty((self.robot.dof, 3, 3)), np.empty((self.robot.dof, 3))
         kernels.chain_fk(q, *self._chain, Rb, pb)
         return Rb, pb
+
+
+def exact_geometry(robot: Robot, geoms: list[int], sp: SphereModel
+                   ) -> tuple[tuple[NDArray[np.int64], Array, Array, Array, Array], Array]:
+    """The covered geometry of each sphere group as a primitive in its joint's frame, and each
+    sphere's inner radius.
+
+    Returns ((kind (G,), R (G, 3, 3), p (G, 3), size (G, 3), pad (G,)), rin (M,)): kind -1
+    where the geometry is no box, cylinder or sphere (its sphere hits are collisions); pad (m)
+    the padding the confirmation test keeps; rin (m) the radius of the ball about each sphere's
+    centre that lies inside its geometry (0 when none or unknown).
+    """
+    G = len(geoms)
+    kind = np.full(G, -1, dtype=np.int64)
+    R = np.tile(np.eye(3), (G, 1, 1))
+    p = np.zeros((G, 3))
+    size = np.zeros((G, 3))
+    pad = np.full(G, max(robot.description.spheres.padding, 1e-5))
+    rin = np.zeros(len(sp))
+    cm = robot.collision_model
+    for i, gi in enumerate(geoms):
+        go = cm.geometryObjects[gi]
+        g = go.geometry
+        if isinstance(g, coal.Box):
+            kind[i], size[i] = kernels.BOX, np.asarray(g.halfSide, dtype=float)
+        elif isinstance(g, coal.Cylinder):
+            kind[i], size[i] = kernels.CYLINDER, (g.radius, g.halfLength, 0.0)
+        elif isinstance(g, coal.Sphere):
+            kind[i], size[i] = kernels.SPHERE, (g.radius, 0.0, 0.0)
+        else:
+            continue
+        R[i], p[i] = go.placement.rotation, go.placement.translation
+        for s in np.flatnonzero(sp.geometries == gi):
+            d = kernels.signed_distance(kind[i], R[i], p[i], size[i], sp.centers[s])
+            rin[s] = max(0.0, -d - 1e-9)
+    return (kind, R, p, size, pad), rin
 
 
 def pinocchio_joint_placements(robot: Robot, q: Array) -> list[pin.SE3]:

@@ -1,0 +1,183 @@
+"""Exact convex primitive–primitive tests for the fast checker (numba), to confirm sphere hits.
+
+A sphere of the cover overlapping an obstacle only says that the geometry it covers *may* touch
+it. These kernels decide it on the geometry itself: GJK looks for the closest point of the
+Minkowski difference A − B to the origin, and the answer "separated" is only given with a
+certificate that does not depend on GJK's numerics: a unit direction u with
+
+    min over A of x·u − max over B of x·u = −h_A(−u) − h_B(u) > pad,
+
+h being the closed-form support value of each primitive. Anything else (touching, overlap,
+GJK not converged, a degenerate simplex) answers "collision", so the fast checker stays
+conservative. Encoding as in ``kernels``: kind 0 sphere (radius), 1 box (half extents),
+2 cylinder along its z axis (radius, half length); world pose R (3, 3), p (3,). Metres.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+MAX_ITER = 32
+
+
+@njit(cache=True)
+def support_value(kind, R, p, size, u):  # pragma: no cover - compiled
+    """h(u) = max over the primitive of x·u, for any direction u (3,)."""
+    h = p[0] * u[0] + p[1] * u[1] + p[2] * u[2]
+    if kind == 0:
+        return h + size[0] * np.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
+    if kind == 1:
+        for i in range(3):
+            h += size[i] * abs(R[0, i] * u[0] + R[1, i] * u[1] + R[2, i] * u[2])
+        return h
+    zu = R[0, 2] * u[0] + R[1, 2] * u[1] + R[2, 2] * u[2]
+    perp2 = max(u[0] * u[0] + u[1] * u[1] + u[2] * u[2] - zu * zu, 0.0)
+    return h + size[1] * abs(zu) + size[0] * np.sqrt(perp2)
+
+
+@njit(cache=True)
+def support_point(kind, R, p, size, u, sign, out):  # pragma: no cover - compiled
+    """out = a point x of the primitive maximising x·(sign·u)."""
+    for a in range(3):
+        out[a] = p[a]
+    if kind == 0:
+        n = np.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
+        if n > 0.0:
+            for a in range(3):
+                out[a] += sign * size[0] * u[a] / n
+    elif kind == 1:
+        for i in range(3):
+            d = sign * (R[0, i] * u[0] + R[1, i] * u[1] + R[2, i] * u[2])
+            s = size[i] if d >= 0.0 else -size[i]
+            for a in range(3):
+                out[a] += s * R[a, i]
+    else:
+        zu = sign * (R[0, 2] * u[0] + R[1, 2] * u[1] + R[2, 2] * u[2])
+        s = size[1] if zu >= 0.0 else -size[1]
+        perp = np.empty(3)
+        for a in range(3):
+            perp[a] = sign * u[a] - zu * R[a, 2]
+            out[a] += s * R[a, 2]
+        n = np.sqrt(perp[0] * perp[0] + perp[1] * perp[1] + perp[2] * perp[2])
+        if n > 1e-15:
+            for a in range(3):
+                out[a] += size[0] * perp[a] / n
+
+
+@njit(cache=True)
+def _closest_on_simplex(S, n, v):  # pragma: no cover - compiled
+    """Closest point v to the origin on the simplex S[:n] (n ≤ 4); S is reduced to the
+    smallest face holding it. Returns the new n (4 when the origin is inside)."""
+    best = np.inf
+    bestmask = 0
+    idx = np.empty(4, dtype=np.int64)
+    E = np.empty((3, 3))
+    x = np.empty(3)
+    for mask in range(1, 1 << n):
+        m = 0
+        for i in range(n):
+            if mask & (1 << i):
+                idx[m] = i
+                m += 1
+        w0 = S[idx[0]]
+        for r in range(m - 1):
+            for a in range(3):
+                E[r, a] = S[idx[r + 1], a] - w0[a]
+        mu0 = mu1 = mu2 = 0.0
+        if m == 2:
+            g = E[0, 0] ** 2 + E[0, 1] ** 2 + E[0, 2] ** 2
+            if g < 1e-24:
+                continue
+            mu0 = -(E[0, 0] * w0[0] + E[0, 1] * w0[1] + E[0, 2] * w0[2]) / g
+        elif m >= 3:
+            G = np.zeros((3, 3))
+            b = np.zeros(3)
+            for r in range(m - 1):
+                b[r] = -(E[r, 0] * w0[0] + E[r, 1] * w0[1] + E[r, 2] * w0[2])
+                for c in range(m - 1):
+                    G[r, c] = E[r, 0] * E[c, 0] + E[r, 1] * E[c, 1] + E[r, 2] * E[c, 2]
+            if m == 3:
+                det = G[0, 0] * G[1, 1] - G[0, 1] * G[1, 0]
+                if abs(det) < 1e-30:
+                    continue
+                mu0 = (b[0] * G[1, 1] - G[0, 1] * b[1]) / det
+                mu1 = (G[0, 0] * b[1] - b[0] * G[1, 0]) / det
+            else:
+                det = (G[0, 0] * (G[1, 1] * G[2, 2] - G[1, 2] * G[2, 1])
+                       - G[0, 1] * (G[1, 0] * G[2, 2] - G[1, 2] * G[2, 0])
+                       + G[0, 2] * (G[1, 0] * G[2, 1] - G[1, 1] * G[2, 0]))
+                if abs(det) < 1e-36:
+                    continue
+                mu0 = (b[0] * (G[1, 1] * G[2, 2] - G[1, 2] * G[2, 1])
+                       - G[0, 1] * (b[1] * G[2, 2] - G[1, 2] * b[2])
+                       + G[0, 2] * (b[1] * G[2, 1] - G[1, 1] * b[2])) / det
+                mu1 = (G[0, 0] * (b[1] * G[2, 2] - G[1, 2] * b[2])
+                       - b[0] * (G[1, 0] * G[2, 2] - G[1, 2] * G[2, 0])
+                       + G[0, 2] * (G[1, 0] * b[2] - b[1] * G[2, 0])) / det
+                mu2 = (G[0, 0] * (G[1, 1] * b[2] - b[1] * G[2, 1])
+                       - G[0, 1] * (G[1, 0] * b[2] - b[1] * G[2, 0])
+                       + b[0] * (G[1, 0] * G[2, 1] - G[1, 1] * G[2, 0])) / det
+        if mu0 < 0.0 or mu1 < 0.0 or mu2 < 0.0 or mu0 + mu1 + mu2 > 1.0:
+            continue
+        for a in range(3):
+            x[a] = w0[a]
+            if m >= 2:
+                x[a] += mu0 * E[0, a]
+            if m >= 3:
+                x[a] += mu1 * E[1, a]
+            if m == 4:
+                x[a] += mu2 * E[2, a]
+        nx = x[0] * x[0] + x[1] * x[1] + x[2] * x[2]
+        if nx < best:
+            best = nx
+            bestmask = mask
+            for a in range(3):
+                v[a] = x[a]
+    if bestmask == 0:  # numerically degenerate: keep the newest point
+        bestmask = 1 << (n - 1)
+        for a in range(3):
+            v[a] = S[n - 1, a]
+    if bestmask == (1 << n) - 1 and n == 4:
+        return 4
+    m = 0
+    for i in range(n):
+        if bestmask & (1 << i):
+            for a in range(3):
+                S[m, a] = S[i, a]
+            m += 1
+    return m
+
+
+@njit(cache=True)
+def primitives_collide(ka, Ra, pa, sa, kb, Rb, pb, sb, pad):  # pragma: no cover - compiled
+    """False only when primitives A and B are proven more than ``pad`` (m) apart."""
+    S = np.empty((4, 3))
+    v = np.empty(3)
+    u = np.empty(3)
+    xa = np.empty(3)
+    xb = np.empty(3)
+    for a in range(3):
+        v[a] = pa[a] - pb[a]
+    n = 0
+    for _ in range(MAX_ITER):
+        nv = np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+        if nv <= pad:
+            return True  # a point of A − B within pad of the origin
+        for a in range(3):
+            u[a] = v[a] / nv
+        # certificate along u: min over A − B of x·u
+        sep = -support_value(ka, Ra, pa, sa, -u) - support_value(kb, Rb, pb, sb, u)
+        if sep > pad + 1e-9:
+            return False
+        support_point(ka, Ra, pa, sa, u, -1.0, xa)
+        support_point(kb, Rb, pb, sb, u, 1.0, xb)
+        w0, w1, w2 = xa[0] - xb[0], xa[1] - xb[1], xa[2] - xb[2]
+        # no progress: GJK has converged on a distance ≤ pad (the certificate failed)
+        if nv * nv - (v[0] * w0 + v[1] * w1 + v[2] * w2) <= 1e-12 * nv * nv:
+            return True
+        S[n, 0], S[n, 1], S[n, 2] = w0, w1, w2
+        n = _closest_on_simplex(S, n + 1, v)
+        if n == 4:
+            return True  # origin inside the simplex
+    return True

@@ -1,0 +1,259 @@
+"""Numba kernels of the fast checker's validity tests: one configuration, batches, motions.
+
+Each group (the spheres covering one collision geometry) has a bounding sphere; static
+obstacles and fixed robot parts are first ruled out by their distance grids, group then sphere.
+A sphere that may touch a primitive is settled in three steps: its inner ball (a ball inside
+the covered geometry, radius ``rin``) touching the primitive is a certain collision; otherwise
+the covered geometry itself (a box, cylinder or sphere when the robot has one: ``gexact``) is
+tested against the primitive with :func:`gjk.primitives_collide`, once per (geometry,
+primitive) and configuration; geometries with no primitive (meshes) count the sphere hit as a
+collision. Self-collision: group bounding spheres, then sphere pairs, then the same three
+steps on the two geometries. Sphere centres are only computed for groups that need them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from chekhov.collision.gjk import primitives_collide
+from chekhov.collision.kernels import chain_fk, grid_classify, signed_distance
+
+
+@njit(cache=True)
+def _place(Rb, pb, gk, gj, eR, ep, g, Rw, pw):  # pragma: no cover - compiled
+    """World pose of group g's exact primitive."""
+    j = gj[g]
+    for a in range(3):
+        pw[a] = (Rb[j, a, 0] * ep[g, 0] + Rb[j, a, 1] * ep[g, 1] + Rb[j, a, 2] * ep[g, 2]
+                 + pb[j, a])
+        for b in range(3):
+            Rw[a, b] = (Rb[j, a, 0] * eR[g, 0, b] + Rb[j, a, 1] * eR[g, 1, b]
+                        + Rb[j, a, 2] * eR[g, 2, b])
+
+
+@njit(cache=True)
+def _centers(Rb, pb, sj, sc, a, b, cw):  # pragma: no cover - compiled
+    for i in range(a, b):
+        j = sj[i]
+        for x in range(3):
+            cw[i, x] = (Rb[j, x, 0] * sc[i, 0] + Rb[j, x, 1] * sc[i, 1] + Rb[j, x, 2] * sc[i, 2]
+                        + pb[j, x])
+
+
+@njit(cache=True)
+def _group_hits(g, src, kind, R, p, size, cand, ncand, cw, sr, rin, gstart, gk, pend, npend
+                ):  # pragma: no cover - compiled
+    """Spheres of group g against the primitives cand[:ncand]: -1 when the geometry certainly
+    touches one (an inner ball does, or the geometry has no exact primitive); otherwise the
+    new count of pending exact tests, (g, src, primitive) appended to ``pend``."""
+    for ii in range(ncand):
+        o = cand[ii]
+        hit = False
+        for s in range(gstart[g], gstart[g + 1]):
+            d = signed_distance(kind[o], R[o], p[o], size[o], cw[s])
+            if d < rin[s]:
+                return -1
+            if d < sr[s]:
+                hit = True
+        if hit:
+            if gk[g] < 0:
+                return -1
+            pend[npend, 0], pend[npend, 1], pend[npend, 2] = g, src, o
+            npend += 1
+    return npend
+
+
+@njit(cache=True)
+def config_collides(q, chain, spheres, groups, static, dyn, fixed, fixed_csr, self_pairs,
+                    grids, gexact, rin, Rb, pb, cw, gw, done, cand, pend
+                    ):  # pragma: no cover - compiled
+    """True if configuration q collides (environment, fixed robot parts, or itself).
+
+    Certain collisions are looked for first everywhere; the exact primitive tests of the
+    uncertain sphere hits run last. Work arrays: Rb (K, 3, 3), pb (K, 3), cw (S, 3), gw (G, 3),
+    done (G,) bool, cand (C,) int64 with C ≥ the number of static, dynamic and fixed
+    primitives, pend (G·C + self pairs, 3) int64."""
+    parent, R0, p0, axis = chain
+    sc, sr, sj = spheres
+    gstart, gc, gr, gj = groups
+    sk, sR, sp, ss = static
+    dk, dR, dp, ds = dyn
+    fk, fR, fp, fs = fixed
+    fstart, fidx = fixed_csr
+    origin, h, delta, V, gfix = grids
+    gk, eR, ep, es, pad = gexact
+    chain_fk(q, parent, R0, p0, axis, Rb, pb)
+    G = gr.shape[0]
+    for g in range(G):
+        j = gj[g]
+        for a in range(3):
+            gw[g, a] = (Rb[j, a, 0] * gc[g, 0] + Rb[j, a, 1] * gc[g, 1]
+                        + Rb[j, a, 2] * gc[g, 2] + pb[j, a])
+        done[g] = False
+    npend = 0
+    for g in range(G):
+        env = grid_classify(origin, h, delta, V[0], gw[g], gr[g])
+        fg = gfix[g]
+        fix = 1 if fg < 0 else grid_classify(origin, h, delta, V[fg], gw[g], gr[g])
+        nd = 0
+        for o in range(dk.shape[0]):
+            if signed_distance(dk[o], dR[o], dp[o], ds[o], gw[g]) < gr[g]:
+                cand[nd] = o
+                nd += 1
+        if env == 1 and fix == 1 and nd == 0:
+            continue
+        _centers(Rb, pb, sj, sc, gstart[g], gstart[g + 1], cw)
+        done[g] = True
+        if nd > 0:
+            npend = _group_hits(g, 2, dk, dR, dp, ds, cand, nd, cw, sr, rin, gstart, gk, pend,
+                                npend)
+            if npend < 0:
+                return True
+        if env != 1:
+            maybe = False
+            for s in range(gstart[g], gstart[g + 1]):
+                e = grid_classify(origin, h, delta, V[0], cw[s], sr[s])
+                if e == -1 and rin[s] > 0.0 and \
+                        grid_classify(origin, h, delta, V[0], cw[s], rin[s]) == -1:
+                    return True
+                if e != 1:
+                    maybe = True
+            if maybe:
+                n = 0
+                for o in range(sk.shape[0]):
+                    if signed_distance(sk[o], sR[o], sp[o], ss[o], gw[g]) < gr[g]:
+                        cand[n] = o
+                        n += 1
+                npend = _group_hits(g, 0, sk, sR, sp, ss, cand, n, cw, sr, rin, gstart, gk,
+                                    pend, npend)
+                if npend < 0:
+                    return True
+        if fix != 1:
+            maybe = False
+            for s in range(gstart[g], gstart[g + 1]):
+                f = grid_classify(origin, h, delta, V[fg], cw[s], sr[s])
+                if f == -1 and rin[s] > 0.0 and \
+                        grid_classify(origin, h, delta, V[fg], cw[s], rin[s]) == -1:
+                    return True
+                if f != 1:
+                    maybe = True
+            if maybe:
+                n = 0
+                for ii in range(fstart[g], fstart[g + 1]):
+                    o = fidx[ii]
+                    if signed_distance(fk[o], fR[o], fp[o], fs[o], gw[g]) < gr[g]:
+                        cand[n] = o
+                        n += 1
+                npend = _group_hits(g, 1, fk, fR, fp, fs, cand, n, cw, sr, rin, gstart, gk,
+                                    pend, npend)
+                if npend < 0:
+                    return True
+    for i in range(self_pairs.shape[0]):
+        a = self_pairs[i, 0]
+        b = self_pairs[i, 1]
+        x = gw[a, 0] - gw[b, 0]
+        y = gw[a, 1] - gw[b, 1]
+        z = gw[a, 2] - gw[b, 2]
+        if x * x + y * y + z * z >= (gr[a] + gr[b]) ** 2:
+            continue
+        for g in (a, b):
+            if not done[g]:
+                _centers(Rb, pb, sj, sc, gstart[g], gstart[g + 1], cw)
+                done[g] = True
+        hit = False
+        for s in range(gstart[a], gstart[a + 1]):
+            for t in range(gstart[b], gstart[b + 1]):
+                x = cw[s, 0] - cw[t, 0]
+                y = cw[s, 1] - cw[t, 1]
+                z = cw[s, 2] - cw[t, 2]
+                d2 = x * x + y * y + z * z
+                if d2 < (rin[s] + rin[t]) ** 2:
+                    return True
+                if d2 < (sr[s] + sr[t]) ** 2:
+                    hit = True
+        if hit:
+            if gk[a] < 0 or gk[b] < 0:
+                return True
+            pend[npend, 0], pend[npend, 1], pend[npend, 2] = a, 3, b
+            npend += 1
+    # the uncertain hits, on the exact geometry
+    Rw = np.empty((3, 3))
+    pw = np.empty(3)
+    Rw2 = np.empty((3, 3))
+    pw2 = np.empty(3)
+    for i in range(npend):
+        g, src, o = pend[i, 0], pend[i, 1], pend[i, 2]
+        _place(Rb, pb, gk, gj, eR, ep, g, Rw, pw)
+        if src == 3:
+            _place(Rb, pb, gk, gj, eR, ep, o, Rw2, pw2)
+            hit = primitives_collide(gk[g], Rw, pw, es[g], gk[o], Rw2, pw2, es[o],
+                                     pad[g] + pad[o])
+        elif src == 0:
+            hit = primitives_collide(gk[g], Rw, pw, es[g], sk[o], sR[o], sp[o], ss[o], pad[g])
+        elif src == 1:
+            hit = primitives_collide(gk[g], Rw, pw, es[g], fk[o], fR[o], fp[o], fs[o], pad[g])
+        else:
+            hit = primitives_collide(gk[g], Rw, pw, es[g], dk[o], dR[o], dp[o], ds[o], pad[g])
+        if hit:
+            return True
+    return False
+
+
+@njit(cache=True)
+def _work(K, spheres, groups, static, dyn, fixed, self_pairs):  # pragma: no cover - compiled
+    G = groups[1].shape[0]
+    C = static[0].shape[0] + dyn[0].shape[0] + fixed[0].shape[0] + 1
+    return (np.empty((K, 3, 3)), np.empty((K, 3)), np.empty((spheres[0].shape[0], 3)),
+            np.empty((G, 3)), np.empty(G, dtype=np.bool_), np.empty(C, dtype=np.int64),
+            np.empty((G * C + self_pairs.shape[0] + 1, 3), dtype=np.int64))
+
+
+@njit(cache=True)
+def valid_batch(Q, chain, spheres, groups, static, dyn, fixed, fixed_csr, self_pairs, grids,
+                gexact, rin):  # pragma: no cover - compiled
+    """Collision-free flag for each row of Q (N, K)."""
+    Rb, pb, cw, gw, done, cand, pend = _work(Q.shape[1], spheres, groups, static, dyn, fixed,
+                                             self_pairs)
+    out = np.empty(Q.shape[0], dtype=np.bool_)
+    for i in range(Q.shape[0]):
+        out[i] = not config_collides(Q[i], chain, spheres, groups, static, dyn, fixed,
+                                     fixed_csr, self_pairs, grids, gexact, rin, Rb, pb, cw, gw,
+                                     done, cand, pend)
+    return out
+
+
+@njit(cache=True)
+def motions_valid(Q0, Q1, resolution, chain, spheres, groups, static, dyn, fixed, fixed_csr,
+                  self_pairs, grids, gexact, rin):  # pragma: no cover - compiled
+    """Whether each straight joint-space motion Q0[i] -> Q1[i] is free at every interior step.
+
+    Steps are at most ``resolution`` (rad, joint-space Euclidean norm) apart and are visited in
+    bisection order so that collisions are found early. The end points are not checked.
+    """
+    K = Q0.shape[1]
+    Rb, pb, cw, gw, done, cand, pend = _work(K, spheres, groups, static, dyn, fixed,
+                                             self_pairs)
+    out = np.empty(Q0.shape[0], dtype=np.bool_)
+    q = np.empty(K)
+    for i in range(Q0.shape[0]):
+        d = Q1[i] - Q0[i]
+        n = int(np.ceil(np.sqrt(np.sum(d * d)) / resolution))
+        ok = True
+        # bisection (van der Corput) order over the interior points 1..n-1
+        step = 1
+        while step < n:
+            step *= 2
+        while step >= 1 and ok:
+            for k in range(step, n, 2 * step):
+                t = k / n
+                for a in range(K):
+                    q[a] = Q0[i, a] + t * d[a]
+                if config_collides(q, chain, spheres, groups, static, dyn, fixed, fixed_csr,
+                                   self_pairs, grids, gexact, rin, Rb, pb, cw, gw, done, cand,
+                                   pend):
+                    ok = False
+                    break
+            step //= 2
+        out[i] = ok
+    return out
