@@ -6,24 +6,42 @@ The public API is flat::
     world = chekhov.World.load("shelf_boxes")
     ok = world.fast.valid(Q)            # (N, 7) -> (N,) bool, numba-compiled
     ok = world.exact.path_valid(path)   # pinocchio + coal, 100 substeps per segment
+    planner = chekhov.RoadmapTrajOpt(world, chekhov.load_or_build_roadmap(world))
+    result = planner.plan(q_start, chekhov.Goal.pose(T_world_ee))   # PlanResult
 """
 
 from chekhov.collision.exact import ExactChecker, densify
 from chekhov.collision.fast import Contacts, FastChecker
 from chekhov.errors import ChekhovError, IKError, RobotError, SceneError
+from chekhov.planners.base import Planner, PlanResult, path_length, resample_path
+from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt
+from chekhov.planners.trajopt_planner import SeededTrajOpt, TrajOptPlanner
+from chekhov.roadmap.build import build_roadmap
+from chekhov.roadmap.config import RoadmapConfig
+from chekhov.roadmap.graph import Roadmap
+from chekhov.roadmap.io import load_or_build_roadmap, load_roadmap, save_roadmap
+from chekhov.roadmap.seeder import RoadmapSeeder
 from chekhov.robot.description import RobotDescription, SphereSettings
+from chekhov.robot.goal import Goal
 from chekhov.robot.ik import IKConfig, solve_ik
 from chekhov.robot.robot import Robot
 from chekhov.robot.spheres import SphereModel, build_sphere_model
 from chekhov.scene.io import builtin_scenes, load_scene, save_scene, scene_from_dict
 from chekhov.scene.model import Articulation, Grasp, Pose, Region, Scene, SceneObject, Shape
+from chekhov.trajopt.config import TrajOptConfig
+from chekhov.trajopt.problem import TrajOptProblem, build_trajopt
+from chekhov.trajopt.result import TrajOptResult
+from chekhov.trajopt.solver import solve_trajopt
 from chekhov.world import World
 
 __all__ = [
-    "Articulation", "ChekhovError", "Contacts", "ExactChecker", "FastChecker", "Grasp",
-    "IKConfig", "IKError", "Pose", "Region", "Robot", "RobotDescription", "RobotError", "Scene",
-    "SceneError", "SceneObject", "Shape", "SphereModel", "SphereSettings", "World",
-    "build_sphere_model", "builtin_scenes", "densify", "load_scene", "save_scene",
-    "scene_from_dict", "solve_ik",
+    "Articulation", "ChekhovError", "Contacts", "ExactChecker", "FastChecker", "Goal", "Grasp",
+    "IKConfig", "IKError", "PlanResult", "Planner", "Pose", "Region", "Roadmap",
+    "RoadmapConfig", "RoadmapSeeder", "RoadmapTrajOpt", "Robot", "RobotDescription",
+    "RobotError", "Scene", "SceneError", "SceneObject", "SeededTrajOpt", "Shape", "SphereModel",
+    "SphereSettings", "TrajOptConfig", "TrajOptPlanner", "TrajOptProblem", "TrajOptResult",
+    "World", "build_roadmap", "build_sphere_model", "build_trajopt", "builtin_scenes", "densify",
+    "load_or_build_roadmap", "load_roadmap", "load_scene", "path_length", "resample_path",
+    "save_roadmap", "save_scene", "scene_from_dict", "solve_ik", "solve_trajopt",
 ]
 __version__ = "0.1.0"

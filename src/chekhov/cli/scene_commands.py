@@ -46,36 +46,41 @@ def _cmd_show(args: argparse.Namespace) -> int:
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    """Load every scene, solve IK for each pre-grasp, check collisions, write pictures."""
+    """The main job: per scene, load or build the roadmap, plan random cases with Roadmap +
+    TrajOpt (every answer exactly checked), report timings, write a picture of one plan."""
+    from chekhov.bench.cases import generate_cases
+    from chekhov.planners.base import path_length
+    from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt
+    from chekhov.roadmap.io import load_or_build_roadmap
     from chekhov.scene.io import builtin_scenes
     from chekhov.viewer.render import render_scene
     from chekhov.world import World
 
     out = Path(args.out)
-    rng = np.random.default_rng(0)
     for name in builtin_scenes():
-        t0 = time.perf_counter()
         world = World.load(name)
-        fast = world.fast
-        Q = world.robot.sample_uniform(rng, 20000)
-        t1 = time.perf_counter()
-        free = fast.valid(Q)
-        t_fast = time.perf_counter() - t1
-        reached, q_show = 0, None
-        poses = [p for o in world.scene.objects for p in o.pregrasp_poses()]
-        for _, T in poses:
-            try:
-                q = world.solve_ik(T, 1, rng=rng)[0]
-            except ChekhovError:
-                continue
-            if world.exact.is_valid(q):
-                reached += 1
-                q_show = q if q_show is None else q_show
-        png = render_scene(world, q=q_show if q_show is not None else np.zeros(7),
-                           out=out / f"{name}.png")
-        print(f"{name:20s} build {t1 - t0:5.2f} s  free {free.mean():5.1%} of random configs  "
-              f"fast {len(Q) / t_fast:9.0f} checks/s  pre-grasps reached {reached}/{len(poses)}"
-              f"  → {png}")
+        t0 = time.perf_counter()
+        roadmap = load_or_build_roadmap(world)
+        t_map = time.perf_counter() - t0
+        planner = RoadmapTrajOpt(world, roadmap)
+        cases = generate_cases(world, args.cases, seed=0)
+        planner.plan(cases.q_start[0], cases.goal(0))  # load compiled kernels
+        times, ratios, solved, exact_ok, shown = [], [], 0, 0, None
+        for i in range(len(cases.q_start)):
+            r = planner.plan(cases.q_start[i], cases.goal(i))
+            times.append(1e3 * r.time_s)
+            if r.success and r.path is not None:
+                solved += 1
+                exact_ok += world.exact.path_valid(r.path, substeps=100)
+                ratios.append(r.path_length / path_length(np.asarray(r.info["roadmap_seed"])))
+                shown = r.path if shown is None else shown
+        png = render_scene(world, q=shown[-1] if shown is not None else np.zeros(7),
+                           path=shown, out=out / f"{name}.png")
+        n = len(cases.q_start)
+        print(f"{name:20s} roadmap {roadmap.n_nodes} nodes ({t_map:4.1f} s)  solved {solved}/{n}"
+              f"  exact-free {exact_ok}/{solved}  median {np.median(times):6.1f} ms  "
+              f"mean {np.mean(times):6.1f} ms  length / roadmap seed "
+              f"{np.mean(ratios) if ratios else float('nan'):.2f}  → {png}")
     return 0
 
 
@@ -87,6 +92,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--q", type=float, nargs="+", help="joint values (rad), group order")
     p.add_argument("--out", default="scene.png", help="PNG file to write")
     p.set_defaults(func=_cmd_show)
-    p = sub.add_parser("demo", help="main job: scenes, IK to every pre-grasp, checks, pictures")
+    p = sub.add_parser("demo", help="main job: roadmaps, Roadmap + TrajOpt plans, pictures")
     p.add_argument("--out", default="out/demo", help="folder for the pictures")
+    p.add_argument("--cases", type=int, default=20, help="random cases per scene")
     p.set_defaults(func=_cmd_demo)
