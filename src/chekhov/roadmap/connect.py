@@ -10,11 +10,16 @@ are tried, cheapest idea first:
   straight to a node;
 * ``proximal``: move the proximal joints to a node's values with the wrist as it is, then turn
   the wrist;
-* ``random``: a random configuration within ``bridge_radius`` rad, then straight to a node.
+* ``random``: a random configuration within ``bridge_radius`` rad, then straight to a node;
+* ``tree``: a small RRT grown from q (steps of ``tree_step`` rad, at most ``tree_nodes``
+  nodes and ``tree_time_s`` s) until one of its nodes has a free straight motion to a
+  roadmap node, for configurations wedged close to obstacles. The last resort: a wider direct search
+  (``wide_candidates`` nearest nodes).
 """
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -97,7 +102,8 @@ class Connector:
                  for n, c in self.direct(q, self.config.connect_candidates)]
         if found or not self.config.bridges:
             return found
-        for attempt in (self._via_wrist, self._via_proximal, self._via_random):
+        for attempt in (self._via_wrist, self._via_proximal, self._via_random, self._via_tree,
+                        self._wide):
             found = attempt(q)
             if found:
                 return sorted(found, key=lambda c: c.cost)
@@ -156,3 +162,56 @@ class Connector:
         r = self.rng.uniform(0.1, self.config.bridge_radius, size=(M, 1))
         Q_mid = np.clip(q + u * r, self.world.robot.lower, self.world.robot.upper)
         return self._bridge(q, Q_mid, "random", 8)
+
+    def _wide(self, q: Array) -> list[Connection]:
+        return [Connection(n, c, q[:0].reshape(0, len(q)), "wide")
+                for n, c in self.direct(q, self.config.wide_candidates, batches=(32,))]
+
+    def _via_tree(self, q: Array) -> list[Connection]:
+        """Grow an RRT from q in batches; connect its new nodes straight to the roadmap."""
+        cfg = self.config
+        robot, fast = self.world.robot, self.world.fast
+        K = len(q)
+        tree = [q]
+        parent = [-1]
+        _, targets = self.tree.query(q, k=min(64, self.roadmap.n_nodes))
+        targets = np.atleast_1d(targets)
+        deadline = time.perf_counter() + cfg.tree_time_s
+        while len(tree) < cfg.tree_nodes and time.perf_counter() < deadline:
+            T = np.array(tree)
+            # half uniform samples (explore), half nearby roadmap nodes (head for the roadmap)
+            X = np.vstack([robot.sample_uniform(self.rng, 8),
+                           self.roadmap.nodes[self.rng.choice(targets, 8)]])
+            near = np.argmin(((T[None, :, :] - X[:, None, :]) ** 2).sum(-1), axis=1)
+            step = X - T[near]
+            n = np.linalg.norm(step, axis=1, keepdims=True)
+            new = T[near] + step * np.minimum(1.0, cfg.tree_step / np.maximum(n, 1e-12))
+            ok = fast.valid(new)
+            ok[ok] = self._motions(T[near[ok]], new[ok])
+            if not ok.any():
+                continue
+            new, near = new[ok], near[ok]
+            first = len(tree)
+            tree += list(new)
+            parent += near.tolist()
+            _, idx = self.tree.query(new, k=2)
+            idx = idx.reshape(len(new), -1)
+            src = np.repeat(np.arange(len(new)), idx.shape[1])
+            cand = idx.reshape(-1)
+            good = self.validity.nodes_valid(cand)
+            src, cand = src[good], cand[good]
+            free = self._motions(new[src], self.roadmap.nodes[cand])
+            if not free.any():
+                continue
+            i = int(np.flatnonzero(free)[0])
+            leaf, node = first + int(src[i]), int(cand[i])
+            chain = []
+            v = leaf
+            while v > 0:
+                chain.append(tree[v])
+                v = parent[v]
+            via = np.array(chain[::-1]).reshape(-1, K)
+            pts = np.vstack([q[None], via, self.roadmap.nodes[node][None]])
+            cost = float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
+            return [Connection(node, cost, via, "tree")]
+        return []

@@ -41,6 +41,9 @@ class SeederConfig:
             intermediate configuration (wrist set to the roadmap's distal values, proximal
             joints moved first, or a random nearby configuration).
         bridge_samples: random intermediates tried, at ``bridge_radius`` rad at most.
+        tree_nodes, tree_step, tree_time_s: size, step (rad) and time budget (s) of the
+            small RRT grown from an end point nothing else connects (``roadmap.connect``).
+        wide_candidates: nearest nodes tried directly as the last resort.
         max_pair_tries: (start node, goal node) pairs tried when dynamic obstacles block paths.
         lazy_iterations: A* rounds of the lazy search on the remaining graph.
         resolution: rad, motion check step; None: the roadmap's.
@@ -55,6 +58,10 @@ class SeederConfig:
     bridges: bool = True
     bridge_samples: int = 48
     bridge_radius: float = 0.8
+    tree_nodes: int = 200
+    tree_time_s: float = 0.05
+    tree_step: float = 0.3
+    wide_candidates: int = 160
     max_pair_tries: int = 6
     lazy_iterations: int = 60
     resolution: float | None = None
@@ -74,7 +81,8 @@ class SeedResult:
         node_path: roadmap node indices along the path.
         q_goal: (K,) the goal configuration used.
         timing_s: s, by phase: "ik", "connect", "search", "validate", "total".
-        info: connection kinds ("direct", "wrist", "proximal", "random"), which stored path
+        info: connection kinds ("direct", "wrist", "proximal", "random", "tree", "wide"),
+            which stored path
             was used ("path_rank"; -1: lazy search), checks made.
     """
 
@@ -192,9 +200,9 @@ class RoadmapSeeder:
         starts = self.connector.connect(q_start)
         goals: list[tuple[int, Connection]] = []
         if starts:
-            for gi, qg in enumerate(Q_goal):
+            for gi, qg in enumerate(Q_goal):  # the first IK solution that connects
                 goals += [(gi, c) for c in self.connector.connect(qg)]
-                if goals and len(goals) >= self.config.max_connections:
+                if goals:
                     break
         timing["connect"] = time.perf_counter() - t
         if not starts or not goals:
