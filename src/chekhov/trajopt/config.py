@@ -84,6 +84,6 @@ class TrajOptConfig:
     validate: Literal["exact", "exact_full", "fast", "none"] = "exact"
     substeps: int = 100
     time_limit_s: float = 10.0
-    osqp_eps: float = 1e-3
+    osqp_eps: float = 1e-2
     proximal_weight: float = 0.1
     osqp_rho: float = 10.0
