@@ -11,6 +11,8 @@ Keys per scene:
   ``ik_median_ms``, ``validate_median_ms`` (the exact check at 100 substeps),
   ``mean_path_length_rad`` (solved cases), ``collision_rate`` (returned paths the exact
   checker rejects: 0 by construction), ``status_counts``;
+  ``median_cpu_ms`` / ``mean_cpu_ms`` (process CPU time of the optimisation: the one-core
+  cost, robust to other load on a shared machine);
 - ``waypoint_series``: T = 10 … 60 → median / mean optimisation ms and failure rate;
 - collision-free seeds of 20–40 waypoints (start → a random free via configuration → goal
   configuration, both legs free, resampled to ≤ 0.16 rad): ``free_seed_median_ms``,
@@ -42,13 +44,14 @@ def _stats(ms: list[float]) -> tuple[float, float]:
 
 def straight_line(world: World, cases, n_waypoints: int) -> dict[str, object]:
     planner = TrajOptPlanner(world, TrajOptConfig(n_waypoints=n_waypoints))
-    opt, ik, val, lengths, statuses = [], [], [], [], []
+    opt, cpu, ik, val, lengths, statuses = [], [], [], [], [], []
     collisions = 0
     for i in range(len(cases.q_start)):
         r = planner.plan(cases.q_start[i], cases.goal(i))
         statuses.append(str(r.info.get("trajopt_status", r.status)))
         if "optimise" in r.timing_s:
             opt.append(1e3 * r.timing_s["optimise"])
+            cpu.append(1e3 * float(r.info["trajopt_cpu_s"]))
             val.append(1e3 * r.timing_s["validate"])
         ik.append(1e3 * r.timing_s.get("ik", 0.0))
         if r.success and r.path is not None:
@@ -57,6 +60,7 @@ def straight_line(world: World, cases, n_waypoints: int) -> dict[str, object]:
     med, mean = _stats(opt)
     n = len(cases.q_start)
     return {"failure_rate": 1 - len(lengths) / n, "median_ms": med, "mean_ms": mean,
+            "median_cpu_ms": _stats(cpu)[0], "mean_cpu_ms": _stats(cpu)[1],
             "ik_median_ms": float(np.median(ik)), "validate_median_ms": _stats(val)[0],
             "mean_path_length_rad": float(np.mean(lengths)) if lengths else float("nan"),
             "collision_rate": collisions / n,
@@ -96,16 +100,18 @@ def bench_scene(name: str, n_cases: int, n_series: int) -> dict[str, object]:
     out["waypoint_series"] = series
     seeds = free_seeds(world, cases, np.random.default_rng(1), n_series)
     cfg = TrajOptConfig(validate="none")
-    opt, ratio = [], []
+    opt, cpu, ratio = [], [], []
     bad = 0
     for qs, seed in seeds:
         goal = Goal.configuration(seed[-1])
         r = solve_trajopt(build_trajopt(world, qs, goal, seed, cfg))
         opt.append(1e3 * r.optimise_s)
+        cpu.append(1e3 * float(r.info["cpu_s"]))  # type: ignore[arg-type]
         ratio.append(r.path_length / path_length(seed))
         bad += not world.exact.path_valid(r.trajectory, substeps=100)
     med, mean = _stats(opt)
     out.update({"free_seeds": len(seeds), "free_seed_median_ms": med, "free_seed_mean_ms": mean,
+                "free_seed_median_cpu_ms": _stats(cpu)[0],
                 "free_seed_waypoints_median": float(np.median([len(s) for _, s in seeds])),
                 "free_seed_collision_rate": bad / max(1, len(seeds)),
                 "free_seed_length_ratio": float(np.mean(ratio)) if ratio else float("nan")})

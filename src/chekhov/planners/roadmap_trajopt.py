@@ -71,6 +71,7 @@ class RoadmapTrajOpt:
         timing["validate"] = r.timing_s["validate"]
         info: dict[str, object] = {"roadmap_seed": s.path, "trajopt_status": r.status,
                                    "iterations": r.iterations,
+                                   "trajopt_cpu_s": r.info["cpu_s"],
                                    "trajectory": r.trajectory, "seed_info": s.info,
                                    "optimised_valid": r.valid, "fallback_to_seed": False,
                                    "trajopt_timing_s": r.timing_s}

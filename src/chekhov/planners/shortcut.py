@@ -10,18 +10,27 @@ from chekhov.collision.fast import FastChecker
 Array = NDArray[np.float64]
 
 
-def shortcut_path(fast: FastChecker, path: Array, resolution: float = 0.02) -> Array:
+def shortcut_path(fast: FastChecker, path: Array, resolution: float = 0.02,
+                  coarse: float = 0.1) -> Array:
     """The path (T, K) with every waypoint skipped that a straight, collision-free motion can
-    jump over: from each kept waypoint, go to the farthest later waypoint it sees (one batched
-    ``motions_valid`` call per kept waypoint). The result's waypoints are a subsequence of the
-    input's, its segments are free at ``resolution`` rad, and it is never longer."""
+    jump over: from each kept waypoint, go to the farthest later waypoint it sees. Candidate
+    jumps are screened at a ``coarse`` resolution (one batched motion check), then the farthest
+    survivor is confirmed at ``resolution`` (rad) before it is taken. The result's waypoints
+    are a subsequence of the input's, its segments are free at ``resolution``, and it is never
+    longer (the path's own segments are assumed free, as a planner's are)."""
     P = np.atleast_2d(np.asarray(path, dtype=float))
     keep = [0]
     i = 0
     while i < len(P) - 1:
-        later = P[i + 1:]
-        ok = fast.motions_valid(np.repeat(P[i:i + 1], len(later), axis=0), later, resolution)
-        ok[0] = True  # the original segment (already valid) is always allowed
-        i = i + 1 + int(np.flatnonzero(ok)[-1])
-        keep.append(i)
+        j = i + 1
+        if i + 2 < len(P):
+            later = np.arange(i + 2, len(P))
+            start = np.repeat(P[i:i + 1], len(later), axis=0)
+            ok = fast.motions_valid(start, P[later], coarse)
+            for cand in later[ok][::-1]:
+                if fast.motions_valid(P[i:i + 1], P[cand:cand + 1], resolution)[0]:
+                    j = int(cand)
+                    break
+        keep.append(j)
+        i = j
     return P[keep]

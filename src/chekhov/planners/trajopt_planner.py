@@ -11,6 +11,7 @@ from numpy.typing import NDArray
 from chekhov.collision.distance_terms import TrajectoryDistances
 from chekhov.errors import ChekhovError
 from chekhov.planners.base import Planner, PlanResult
+from chekhov.roadmap.kinematics import ChainKinematics
 from chekhov.robot.goal import Goal
 from chekhov.trajopt.config import TrajOptConfig
 from chekhov.trajopt.problem import build_trajopt, goal_configuration, straight_line_seed
@@ -31,11 +32,33 @@ class TrajOptPlanner:
         self.config = config if config is not None else TrajOptConfig()
         self.name = name
         self._distances = TrajectoryDistances(world.fast)
+        self._rng = np.random.default_rng(0)
+        try:
+            self._kinematics: ChainKinematics | None = ChainKinematics.from_robot(world.robot)
+        except ChekhovError:
+            self._kinematics = None  # not a serial revolute chain: pinocchio IK
+
+    def goal_configuration(self, q_start: Array, goal: Goal, n_seeds: int = 32,
+                           n_solutions: int = 6) -> Array:
+        """The goal configuration, or for a pose goal the collision-free IK solution nearest
+        q_start: numba damped least squares from q_start and random seeds, stopping after
+        ``n_solutions`` converge. Raises ChekhovError when none is found."""
+        if goal.q is not None or self._kinematics is None:
+            return goal_configuration(self.world, q_start, goal)
+        assert goal.T_world_ee is not None
+        for _ in range(3):
+            seeds = np.vstack([q_start, self.world.robot.sample_uniform(self._rng, n_seeds)])
+            Q, ok = self._kinematics.solve(goal.T_world_ee, seeds, stop_after=n_solutions)
+            Q = Q[ok]
+            Q = Q[self.world.fast.valid(Q)] if len(Q) else Q
+            if len(Q):
+                return Q[int(np.argmin(np.linalg.norm(Q - q_start, axis=1)))]
+        return goal_configuration(self.world, q_start, goal)  # the slower, thorough search
 
     def plan(self, q_start: Array, goal: Goal, time_limit_s: float = 10.0) -> PlanResult:
         t0 = time.perf_counter()
         try:
-            q_goal = goal_configuration(self.world, np.asarray(q_start, dtype=float), goal)
+            q_goal = self.goal_configuration(np.asarray(q_start, dtype=float), goal)
         except ChekhovError as e:
             return PlanResult(False, None, "no_ik", time.perf_counter() - t0,
                               info={"error": str(e)})
@@ -85,6 +108,7 @@ def _optimise(world: World, config: TrajOptConfig, distances: TrajectoryDistance
         status="solved" if r.success else r.status, time_s=time.perf_counter() - t0,
         timing_s=timing, seed=problem.seed,
         info={"trajopt_status": r.status, "iterations": r.iterations,
+              "trajopt_cpu_s": r.info["cpu_s"],
               "violations": r.violations, "trajectory": r.trajectory,
               "trajopt_timing_s": r.timing_s})
 

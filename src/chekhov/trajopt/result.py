@@ -31,6 +31,9 @@ class TrajOptResult:
         timing_s: seconds in "collision" (distance terms), "linearise" (goal, torque, QP
             values), "qp" (OSQP), "validate", "other", and "total".
         seed: the seed trajectory (T, K).
+        info: "cpu_s" (process CPU seconds of the optimisation, without the validation: the
+            one-core cost, robust to other load on the machine), "penalty", "trust_rad",
+            "qp_rebuilds", "admm_iterations".
     """
 
     trajectory: Array

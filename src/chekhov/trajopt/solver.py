@@ -31,6 +31,7 @@ def solve_trajopt(problem: TrajOptProblem) -> TrajOptResult:
     """
     cfg = problem.config
     t_start = time.perf_counter()
+    cpu_start = time.process_time()
     deadline = t_start + cfg.time_limit_s
     timing = {"collision": 0.0, "linearise": 0.0, "qp": 0.0, "validate": 0.0}
     T, K = problem.n_waypoints, problem.dof
@@ -85,6 +86,7 @@ def solve_trajopt(problem: TrajOptProblem) -> TrajOptResult:
         trust = max(trust, cfg.initial_trust_rad)
     Q = x.reshape(T, K)
     satisfied = problem.satisfied(ev)
+    cpu_s = time.process_time() - cpu_start
     status = ("converged" if converged else "iteration_limit") if satisfied else "infeasible"
     valid: bool | None = None
     t0 = time.perf_counter()
@@ -102,7 +104,7 @@ def solve_trajopt(problem: TrajOptProblem) -> TrajOptResult:
                             "merit": problem.merit(ev, mu)},
         violations=problem.constraint_report(ev), iterations=iterations,
         penalty_increases=penalty_increases, timing_s=timing, seed=problem.seed,
-        info={"penalty": mu, "trust_rad": trust, "qp_rebuilds": rebuilds,
+        info={"cpu_s": cpu_s, "penalty": mu, "trust_rad": trust, "qp_rebuilds": rebuilds,
               "admm_iterations": qp.admm_iterations})
 
 
