@@ -12,6 +12,11 @@ benchmark (that is ``chekhov bench``), a quick smoke figure.
 
 from __future__ import annotations
 
+import os
+
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")  # one core: idle BLAS threads would only spin
+
 import argparse
 import json
 import time

@@ -8,9 +8,21 @@ Cases: random collision-free start and goal configurations within the limits (fa
 checkers agree), the goal given as the end-effector pose of the goal configuration;
 deterministic for a given --seed. One JSON object per scene; ``bench_scene`` returns it as a
 dict so other planners' figures can be added.
+
+``roadmap_trajopt`` (also under ``semantic_off`` and ``dynamic``) holds the Roadmap + TrajOpt
+planner's figures on the same cases: failure_rate, median_ms, mean_ms, p95_ms (wall, whole
+query including validation), median_cpu_ms / mean_cpu_ms (process CPU time: the one-core cost,
+robust to other load), mean_path_length_rad, mean_roadmap_seed_length_rad,
+mean_length_ratio_to_seed, optimised_collision_rate (exact check before fallback),
+fallback_rate and returned_collision_rate (must be 0).
 """
 
 from __future__ import annotations
+
+import os
+
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")  # one core: idle BLAS threads would only spin
 
 import argparse
 import json
@@ -21,6 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
+from chekhov.planners.base import path_length
+from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt
 from chekhov.roadmap.build import build_roadmap
 from chekhov.roadmap.config import RoadmapConfig
 from chekhov.roadmap.graph import Roadmap
@@ -104,6 +118,51 @@ def run_queries(world: World, roadmap: Roadmap, starts: np.ndarray, goals: np.nd
     }
 
 
+def run_planner(world: World, roadmap: Roadmap, starts: np.ndarray, goals: np.ndarray,
+                seeder_config: SeederConfig) -> dict[str, object]:
+    """Roadmap + TrajOpt on the cases: wall and CPU time of whole queries (seed, shortcut,
+    TrajOpt, validation), path lengths, and collisions by the exact checker at 100 substeps:
+    of the optimised trajectories before any fallback, and of what was returned (must be 0)."""
+    planner = RoadmapTrajOpt(world, roadmap, seeder_config=seeder_config)
+    T_goals = world.robot.compute_ee_poses(goals)
+    planner.plan(starts[0], Goal.pose(T_goals[0]))  # load compiled kernels
+    wall, cpu, lengths, seed_lengths, ratios = [], [], [], [], []
+    optimised_bad = returned_bad = optimised = fallbacks = 0
+    for q0, T in zip(starts, T_goals, strict=True):
+        c0 = time.process_time()
+        r = planner.plan(q0, Goal.pose(T))
+        cpu.append(time.process_time() - c0)
+        wall.append(r.time_s)
+        traj = r.info.get("trajectory")
+        if traj is not None:
+            optimised += 1
+            optimised_bad += not world.exact.path_valid(np.asarray(traj), substeps=100)
+        if r.success and r.path is not None:
+            fallbacks += bool(r.info.get("fallback_to_seed"))
+            returned_bad += not world.exact.path_valid(r.path, substeps=100)
+            seed_len = path_length(np.asarray(r.info["roadmap_seed"]))
+            lengths.append(r.path_length)
+            seed_lengths.append(seed_len)
+            ratios.append(r.path_length / seed_len)
+    n = len(starts)
+    ms = 1e3
+    return {
+        "failure_rate": round(1 - len(lengths) / n, 4),
+        "median_ms": round(float(np.median(wall)) * ms, 2),
+        "mean_ms": round(float(np.mean(wall)) * ms, 2),
+        "p95_ms": round(float(np.percentile(wall, 95)) * ms, 2),
+        "median_cpu_ms": round(float(np.median(cpu)) * ms, 2),
+        "mean_cpu_ms": round(float(np.mean(cpu)) * ms, 2),
+        "mean_path_length_rad": round(float(np.mean(lengths)), 3) if lengths else None,
+        "mean_roadmap_seed_length_rad": round(float(np.mean(seed_lengths)), 3)
+        if seed_lengths else None,
+        "mean_length_ratio_to_seed": round(float(np.mean(ratios)), 3) if ratios else None,
+        "optimised_collision_rate": round(optimised_bad / max(1, optimised), 4),
+        "fallback_rate": round(fallbacks / n, 4),
+        "returned_collision_rate": round(returned_bad / n, 4),
+    }
+
+
 def roadmap_for(world: World, config: RoadmapConfig, cache: Path | None
                 ) -> tuple[Roadmap, float]:
     """(roadmap, build s): built now, or loaded from --cache when present (build s as saved)."""
@@ -141,16 +200,21 @@ def bench_scene(name: str, n_cases: int = 500, seed: int = 0, config: RoadmapCon
     rm, build_s = roadmap_for(world, config, cache)
     out.update(roadmap_figures(rm, build_s))
     out.update(run_queries(world, rm, starts, goals, seeder_config))
+    out["roadmap_trajopt"] = run_planner(world, rm, starts, goals, seeder_config)
     rm_off, build_off = roadmap_for(world, replace(config, semantic=False), cache)
     out["semantic_off"] = {**roadmap_figures(rm_off, build_off),
-                           **run_queries(world, rm_off, starts, goals, seeder_config)}
+                           **run_queries(world, rm_off, starts, goals, seeder_config),
+                           "roadmap_trajopt": run_planner(world, rm_off, starts, goals,
+                                                          seeder_config)}
     if n_obstacles:
         add_random_obstacles(world, n_obstacles, seed)
         keep = world.fast.valid(starts) & world.fast.valid(goals)
         keep &= np.array([world.exact.is_valid(a) and world.exact.is_valid(b)
                           for a, b in zip(starts, goals, strict=True)])
         out["dynamic"] = {"obstacles": n_obstacles,
-                          **run_queries(world, rm, starts[keep], goals[keep], seeder_config)}
+                          **run_queries(world, rm, starts[keep], goals[keep], seeder_config),
+                          "roadmap_trajopt": run_planner(world, rm, starts[keep], goals[keep],
+                                                         seeder_config)}
     return out
 
 

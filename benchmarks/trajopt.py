@@ -23,6 +23,11 @@ Keys per scene:
 
 from __future__ import annotations
 
+import os
+
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")  # one core: idle BLAS threads would only spin
+
 import argparse
 import json
 
