@@ -194,3 +194,24 @@ def test_primitive_confirmation_never_misses_a_coal_collision():
             free_found += 1
             assert not hit, (i, d)
     assert free_found > 1000
+
+
+@pytest.mark.parametrize("scene", ["shelf_boxes", "kitchen"])
+def test_dense_path_check_equals_checking_every_configuration(world_of, scene):
+    """Certified skipping gives the same first colliding index as checking all of
+    densify(path, 100) with the fast checker, on free and colliding paths."""
+    from chekhov.collision.exact import densify
+
+    w = world_of(scene)
+    rng = np.random.default_rng(5)
+    Q = w.robot.sample_uniform(rng, 2000)
+    Q = Q[w.fast.valid(Q)]
+    kinds = set()
+    for i in range(0, 40, 2):
+        scale = 1.0 if i % 4 == 0 else 0.3
+        P = np.linspace(Q[i], Q[i] + scale * (Q[i + 1] - Q[i]), 12)
+        v = w.fast.valid(densify(P, 100))
+        ref = None if v.all() else int(np.flatnonzero(~v)[0])
+        assert w.fast.first_dense_collision(P, 100) == ref
+        kinds.add(ref is None)
+    assert kinds == {True, False}

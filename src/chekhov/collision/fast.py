@@ -15,7 +15,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from chekhov.collision import kernels, validity
+from chekhov.collision import dense_path, kernels, validity
 from chekhov.collision.grid import build_grid
 from chekhov.collision.primitives import Primitive, geometry_primitives, pack, shape_primitive
 from chekhov.errors import RobotError
@@ -128,6 +128,7 @@ class FastChecker:
         fstart = np.searchsorted(self._fixed_pairs[:, 0], np.arange(G + 1)).astype(np.int64)
         self._fixed_csr = (fstart, self._fixed_pairs[:, 1].copy())
         self._self_pairs = np.array(self_pairs, dtype=np.int64).reshape(-1, 2)
+        self._lever: Array | None = None  # (G, K) for dense path checks, on first use
         self._obstacles: dict[str, Primitive] = {}
         self._dynamic: set[str] = set()
         if scene is not None:
@@ -258,6 +259,22 @@ class FastChecker:
         """Whether a waypoint path (T, K) is free at waypoints and along every segment."""
         P = self._as_batch(path)
         return bool(self.valid(P).all() and self.motions_valid(P[:-1], P[1:], resolution).all())
+
+    def first_dense_collision(self, path: Array, substeps: int = 100) -> int | None:
+        """Index into ``densify(path, substeps)`` of the first configuration this checker calls
+        colliding, or None: the same answer as ``valid(densify(path, substeps))``, computed
+        with clearance certificates that skip most configurations (see ``dense_path.py``)."""
+        P = self._as_batch(path)
+        if self._lever is None:
+            parent, _, p0, _ = self._chain
+            self._lever = dense_path.lever_arms(parent, p0, self._groups[3], self._groups[1])
+        i = dense_path.first_dense_collision(P, int(substeps), self._lever, *self._args())
+        return None if i < 0 else int(i)
+
+    def dense_path_valid(self, path: Array, substeps: int = 100) -> bool:
+        """Whether every waypoint of path (T, K) and ``substeps`` interpolated configurations
+        per segment are free (the paper's check, on this checker)."""
+        return self.first_dense_collision(path, substeps) is None
 
     def min_distance(self, Q: Array) -> Array:
         """Smallest signed distance (m) between the spheres and anything, per configuration."""

@@ -15,7 +15,6 @@ import time
 import numpy as np
 from numpy.typing import NDArray
 
-from chekhov.collision.exact import densify
 from chekhov.trajopt.problem import Evaluation, TrajOptProblem
 from chekhov.trajopt.qp import TrajOptQP, term_counts
 from chekhov.trajopt.result import TrajOptResult
@@ -119,7 +118,7 @@ def validate_path(world: World, path: Array, mode: str = "exact", substeps: int 
     """
     if mode == "exact_full":
         return world.exact.path_valid(path, substeps=substeps)
-    if bool(world.fast.valid(densify(path, substeps)).all()):
+    if world.fast.dense_path_valid(path, substeps):
         return True
     return mode == "exact" and world.exact.path_valid(path, substeps=substeps)
 
