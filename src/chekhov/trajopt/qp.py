@@ -115,18 +115,28 @@ class TrajOptQP:
                 v[:, :3] = [1.0, -2.0, 1.0]
             vals[n_z + b.value_offset:n_z + b.value_offset + v.size] = v.ravel()
         self._vals = vals
-        # smoothness Hessian: ½ xᵀ P x = Σ_t ||W (x_{t+1} - x_t)||²
-        D = sp.diags([-np.ones((T - 1) * K), np.ones((T - 1) * K)], [0, K],
-                     shape=((T - 1) * K, T * K))
-        W2 = sp.diags(np.tile(problem.weights**2, T - 1))
-        Px = (2 * D.T @ W2 @ D).tocsc()
-        self.Px = Px
-        # the proximal term ½ ρ ||x - x̄||² regularises each step (ADMM converges far faster
-        # on a strongly convex QP); the merit model used by the ratio test leaves it out
-        prox = sp.identity(T * K, format="csc") * problem.config.proximal_weight
-        self.P = sp.block_diag([Px + prox, sp.csc_matrix((self._n_slack, self._n_slack))],
-                               format="csc")
-        self.P = sp.triu(self.P, format="csc")
+        # smoothness Hessian, ½ xᵀ P x = Σ_t ||W (x_{t+1} - x_t)||², plus the proximal term
+        # ½ ρ ||x - x̄||² that regularises each step (ADMM converges far faster on a strongly
+        # convex QP; the merit model of the ratio test leaves it out). Upper triangle, CSC,
+        # built directly: column (t, j) holds (t-1, j) and its diagonal.
+        w2 = np.tile(2.0 * problem.weights**2, T)
+        deg = np.full(T * K, 2.0)
+        deg[:K] = deg[-K:] = 1.0
+        diag = deg * w2 + problem.config.proximal_weight
+        if T == 1:
+            diag = np.full(K, problem.config.proximal_weight)
+        has_up = np.arange(T * K) >= K
+        counts = np.r_[1 + has_up.astype(np.int64), np.zeros(self._n_slack, dtype=np.int64)]
+        indptr = np.r_[0, np.cumsum(counts)]
+        indices = np.empty(indptr[-1], dtype=np.int64)
+        data = np.empty(indptr[-1])
+        first = indptr[:-1][:T * K]
+        up = first[has_up]
+        cols_up = np.flatnonzero(has_up)
+        indices[up], data[up] = cols_up - K, -w2[cols_up]
+        dpos = first + has_up
+        indices[dpos], data[dpos] = np.arange(T * K), diag
+        self.P = sp.csc_matrix((data, indices, indptr), shape=(n_z, n_z))
         self._solver: osqp.OSQP | None = None
         self._last_ev: Evaluation | None = None
         self.admm_iterations = 0
@@ -246,7 +256,7 @@ class TrajOptQP:
             return x_bar.copy(), np.inf, str(res.info.status)
         xs = np.clip(x[:self.n_x], lo_[:self.n_x], u[:self.n_x])
         s_model = np.maximum(self._residual_slacks(xs, lo_, u), 0.0)
-        obj = 0.5 * float(xs @ (self.Px @ xs)) \
+        obj = self.problem.smoothness(xs.reshape(-1, self.problem.dof)) \
             + mu * float(self.slack_coeff @ s_model)
         return xs, obj, str(res.info.status)
 
