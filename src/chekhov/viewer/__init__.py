@@ -1,1 +1,3 @@
-"""Pictures and (later) the interactive viewer."""
+"""Pictures (``render``: matplotlib PNGs) and the interactive 3D viewer (``app.Viewer``, on
+viser: ``pip install 'chekhov[viewer]'``). Import ``chekhov.viewer.app`` explicitly; this
+package does not import viser."""

@@ -1,0 +1,41 @@
+"""Viewer command: ``chekhov view SCENE`` starts the interactive 3D viewer in the browser."""
+
+from __future__ import annotations
+
+import argparse
+
+
+def _cmd_view(args: argparse.Namespace) -> int:
+    from chekhov.viewer.app import check_port_free
+
+    check_port_free(args.host, args.port)  # fail fast, before loading anything
+    from chekhov.bench.cases import CaseSet, cached_cases
+    from chekhov.roadmap.io import load_or_build_roadmap, load_roadmap
+    from chekhov.viewer.app import Viewer
+    from chekhov.world import World
+
+    world = World.load(args.scene)
+    roadmap = (load_roadmap(args.roadmap, world) if args.roadmap
+               else load_or_build_roadmap(world, progress=lambda s: print(s, flush=True)))
+    cases = CaseSet.load(args.cases, world) if args.cases else cached_cases(world, args.n_cases)
+    viewer = Viewer(world, roadmap, cases, host=args.host, port=args.port,
+                    show_spheres=args.spheres)
+    print(f"chekhov viewer: {viewer.url}  ({world.scene.name}; Ctrl-C to stop)", flush=True)
+    viewer.serve_forever()
+    return 0
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add ``view`` to the top-level parser."""
+    p = sub.add_parser("view", help="interactive 3D viewer in the browser (viser): plan, "
+                                    "drag obstacles, watch it replan")
+    p.add_argument("scene", help="built-in scene name or scene YAML file")
+    p.add_argument("--roadmap", help="roadmap file (default: the cached roadmap, built if "
+                                     "missing)")
+    p.add_argument("--cases", help="case file (default: 20 cached cases, seed 0)")
+    p.add_argument("--n-cases", type=int, default=20, help="cases when no --cases file")
+    p.add_argument("--host", default="127.0.0.1", help="address to listen on (default "
+                                                       "localhost only)")
+    p.add_argument("--port", type=int, default=8080, help="port (default 8080)")
+    p.add_argument("--spheres", action="store_true", help="show the collision spheres")
+    p.set_defaults(func=_cmd_view)
