@@ -134,12 +134,16 @@ def run_planner(world: World, roadmap: Roadmap, starts: np.ndarray, goals: np.nd
         cpu.append(time.process_time() - c0)
         wall.append(r.time_s)
         traj = r.info.get("trajectory")
+        traj_ok = None
         if traj is not None:
             optimised += 1
-            optimised_bad += not world.exact.path_valid(np.asarray(traj), substeps=100)
+            traj_ok = world.exact.path_valid(np.asarray(traj), substeps=100)
+            optimised_bad += not traj_ok
         if r.success and r.path is not None:
             fallbacks += bool(r.info.get("fallback_to_seed"))
-            returned_bad += not world.exact.path_valid(r.path, substeps=100)
+            same = traj is not None and np.array_equal(np.asarray(traj), r.path)
+            ok = traj_ok if same else world.exact.path_valid(r.path, substeps=100)
+            returned_bad += not ok
             seed_len = path_length(np.asarray(r.info["roadmap_seed"]))
             lengths.append(r.path_length)
             seed_lengths.append(seed_len)
