@@ -17,9 +17,9 @@ from chekhov.roadmap.build import _csr, build_roadmap
 from chekhov.roadmap.config import RoadmapConfig
 from chekhov.roadmap.errors import RoadmapError, RoadmapMismatchError
 from chekhov.roadmap.io import load_or_build_roadmap, load_roadmap, save_roadmap
-from chekhov.roadmap.kinematics import ChainKinematics
 from chekhov.roadmap.kpaths import KShortestPaths, yen_k_shortest
 from chekhov.roadmap.seeder import RoadmapSeeder
+from chekhov.robot.chain_kinematics import ChainKinematics
 from chekhov.robot.goal import Goal
 from chekhov.scene.model import Shape
 

@@ -11,7 +11,7 @@ from numpy.typing import NDArray
 from chekhov.collision.distance_terms import TrajectoryDistances
 from chekhov.errors import ChekhovError
 from chekhov.planners.base import Planner, PlanResult
-from chekhov.roadmap.kinematics import ChainKinematics
+from chekhov.robot.chain_kinematics import ChainKinematics
 from chekhov.robot.goal import Goal
 from chekhov.trajopt.config import TrajOptConfig
 from chekhov.trajopt.problem import build_trajopt, goal_configuration, straight_line_seed

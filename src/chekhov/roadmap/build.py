@@ -17,8 +17,8 @@ from chekhov.collision.fast import FastChecker
 from chekhov.roadmap.config import RoadmapConfig
 from chekhov.roadmap.errors import RoadmapError
 from chekhov.roadmap.graph import FORMAT_VERSION, NODE_KINDS, Roadmap, RoadmapMeta
-from chekhov.roadmap.kinematics import ChainKinematics
 from chekhov.roadmap.kpaths import yen_k_shortest
+from chekhov.robot.chain_kinematics import ChainKinematics
 from chekhov.world import World
 
 Array = NDArray[np.float64]

@@ -14,10 +14,10 @@ from chekhov.roadmap.build import distal_values
 from chekhov.roadmap.connect import Connection, Connector
 from chekhov.roadmap.errors import RoadmapMismatchError
 from chekhov.roadmap.graph import Roadmap
-from chekhov.roadmap.kinematics import ChainKinematics
 from chekhov.roadmap.kpaths import KShortestPaths
 from chekhov.roadmap.search import astar, path_edges, warm_up
 from chekhov.roadmap.validity import INVALID, RoadmapValidity
+from chekhov.robot.chain_kinematics import ChainKinematics
 from chekhov.robot.goal import Goal
 from chekhov.world import World
 

@@ -1,4 +1,4 @@
-"""Numba forward and inverse kinematics of a serial revolute chain, for the roadmap's hot loops.
+"""Numba forward and inverse kinematics of a serial revolute chain, for hot loops (roadmap and planners).
 
 ``chekhov.robot.ik.solve_ik`` (pinocchio, Python loop) costs ~0.5 ms a seeded solve; the
 roadmap solves IK for every semantic node at build time and for every pose goal at query time,
@@ -16,7 +16,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from chekhov.roadmap.errors import RoadmapError
+from chekhov.errors import RobotError
 from chekhov.robot.robot import Robot
 
 Array = NDArray[np.float64]
@@ -45,14 +45,14 @@ class ChainKinematics:
 
     @classmethod
     def from_robot(cls, robot: Robot) -> ChainKinematics:
-        """The robot's planning group; raises :class:`RoadmapError` for a non-serial chain or
+        """The robot's planning group; raises :class:`RobotError` for a non-serial chain or
         a non-revolute joint, or an end effector not on the last joint."""
         m = robot.model
         K = robot.dof
         axes = []
         for k in range(1, K + 1):
             if m.parents[k] != k - 1:
-                raise RoadmapError(f"robot '{robot.name}': roadmap kinematics need a serial "
+                raise RobotError(f"robot '{robot.name}': chain kinematics need a serial "
                                    f"chain; joint '{m.names[k]}' has parent {m.parents[k]}")
             j = m.joints[k]
             name = j.shortname()
@@ -61,11 +61,11 @@ class ChainKinematics:
             elif name == "JointModelRevoluteUnaligned":
                 axes.append(tuple(j.extract().axis))
             else:
-                raise RoadmapError(f"robot '{robot.name}': joint '{m.names[k]}' is {name}; "
-                                   "roadmap kinematics support revolute joints only")
+                raise RobotError(f"robot '{robot.name}': joint '{m.names[k]}' is {name}; "
+                                   "chain kinematics support revolute joints only")
         frame = m.frames[robot.ee_frame_id]
         if frame.parentJoint != K:
-            raise RoadmapError(f"robot '{robot.name}': end-effector frame is on joint "
+            raise RobotError(f"robot '{robot.name}': end-effector frame is on joint "
                                f"{frame.parentJoint}, expected the last joint {K}")
         return cls(
             R_parent_joint=np.array([m.jointPlacements[k].rotation for k in range(1, K + 1)]),
