@@ -18,9 +18,10 @@ from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt
 from chekhov.planners.trajopt_planner import SeededTrajOpt, TrajOptPlanner
 from chekhov.roadmap.build import build_roadmap
 from chekhov.roadmap.config import RoadmapConfig
+from chekhov.roadmap.errors import RoadmapError, RoadmapMismatchError
 from chekhov.roadmap.graph import Roadmap
 from chekhov.roadmap.io import load_or_build_roadmap, load_roadmap, save_roadmap
-from chekhov.roadmap.seeder import RoadmapSeeder
+from chekhov.roadmap.seeder import RoadmapSeeder, SeederConfig, SeedResult
 from chekhov.robot.description import RobotDescription, SphereSettings
 from chekhov.robot.goal import Goal
 from chekhov.robot.ik import IKConfig, solve_ik
@@ -35,13 +36,56 @@ from chekhov.trajopt.solver import solve_trajopt
 from chekhov.world import World
 
 __all__ = [
-    "Articulation", "ChekhovError", "Contacts", "ExactChecker", "FastChecker", "Goal", "Grasp",
-    "IKConfig", "IKError", "PlanResult", "Planner", "Pose", "Region", "Roadmap",
-    "RoadmapConfig", "RoadmapSeeder", "RoadmapTrajOpt", "Robot", "RobotDescription",
-    "RobotError", "Scene", "SceneError", "SceneObject", "SeededTrajOpt", "Shape", "SphereModel",
-    "SphereSettings", "TrajOptConfig", "TrajOptPlanner", "TrajOptProblem", "TrajOptResult",
-    "World", "build_roadmap", "build_sphere_model", "build_trajopt", "builtin_scenes", "densify",
-    "load_or_build_roadmap", "load_roadmap", "load_scene", "path_length", "resample_path",
-    "save_roadmap", "save_scene", "scene_from_dict", "solve_ik", "solve_trajopt",
+    "Articulation",
+    "ChekhovError",
+    "Contacts",
+    "ExactChecker",
+    "FastChecker",
+    "Goal",
+    "Grasp",
+    "IKConfig",
+    "IKError",
+    "PlanResult",
+    "Planner",
+    "Pose",
+    "Region",
+    "Roadmap",
+    "RoadmapConfig",
+    "RoadmapError",
+    "RoadmapMismatchError",
+    "RoadmapSeeder",
+    "RoadmapTrajOpt",
+    "Robot",
+    "RobotDescription",
+    "RobotError",
+    "Scene",
+    "SceneError",
+    "SceneObject",
+    "SeedResult",
+    "SeededTrajOpt",
+    "SeederConfig",
+    "Shape",
+    "SphereModel",
+    "SphereSettings",
+    "TrajOptConfig",
+    "TrajOptPlanner",
+    "TrajOptProblem",
+    "TrajOptResult",
+    "World",
+    "build_roadmap",
+    "build_sphere_model",
+    "build_trajopt",
+    "builtin_scenes",
+    "densify",
+    "load_or_build_roadmap",
+    "load_roadmap",
+    "load_scene",
+    "path_length",
+    "resample_path",
+    "save_roadmap",
+    "save_scene",
+    "scene_from_dict",
+    "solve_ik",
+    "solve_trajopt",
 ]
 __version__ = "0.1.0"
