@@ -167,3 +167,21 @@ def test_bad_input_gets_a_clear_error(pole, rng):
         build_trajopt(pole, q0, Goal.pose(far))
     with pytest.raises(TrajOptError, match="start configuration"):
         build_trajopt(pole, q0[:5], Goal.configuration(q1))
+
+
+def test_velocity_acceleration_and_torque_limits_hold_with_a_duration(pole, rng):
+    """With a duration, the result keeps joint velocities, accelerations and RNEA torques
+    within their limits (or reports the violation); a too-short duration cannot be met."""
+    q0, q1 = _free(pole, rng, 2)
+    cfg = TrajOptConfig(duration_s=4.0, acceleration_limit=4.0, n_waypoints=20)
+    prob = build_trajopt(pole, q0, Goal.configuration(q1), config=cfg)
+    r = solve_trajopt(prob)
+    ev = prob.evaluate(r.trajectory)
+    assert r.success, r.status
+    assert np.all(np.abs(ev.velocity) <= prob.velocity_limit + 1e-3)
+    assert np.all(np.abs(ev.acceleration) <= prob.acceleration_limit + 1e-3)
+    assert np.all(np.abs(ev.torque) <= prob.torque_limit + 1e-2)
+    fast = build_trajopt(pole, q0, Goal.configuration(q1),
+                         config=TrajOptConfig(duration_s=0.05, n_waypoints=10, validate="none"))
+    r2 = solve_trajopt(fast)
+    assert r2.status == "infeasible" and r2.violations["velocity_rad"] > 0
