@@ -5,10 +5,14 @@ from __future__ import annotations
 import argparse
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from chekhov.errors import ChekhovError
+
+if TYPE_CHECKING:
+    from chekhov.world import World
 
 
 def _cmd_scenes(args: argparse.Namespace) -> int:
@@ -31,18 +35,82 @@ def _parse_q(values: list[float] | None, dof: int) -> np.ndarray | None:
     return np.asarray(values, dtype=float)
 
 
+def _load_path(path: str, dof: int) -> np.ndarray:
+    """A trajectory (T, dof) from .npy, .npz (array "path", else the first) or a text file
+    (one waypoint a row, comma or whitespace separated)."""
+    p = Path(path)
+    try:
+        if p.suffix == ".npy":
+            arr = np.load(p, allow_pickle=False)
+        elif p.suffix == ".npz":
+            with np.load(p, allow_pickle=False) as z:
+                arr = z["path"] if "path" in z.files else z[z.files[0]]
+        else:
+            text = p.read_text()
+            arr = np.loadtxt(p, delimiter="," if "," in text else None, ndmin=2)
+    except (OSError, ValueError, IndexError) as e:
+        raise ChekhovError(f"--path {path}: cannot read a trajectory: {e}") from e
+    arr = np.atleast_2d(np.asarray(arr, dtype=float))
+    if arr.ndim != 2 or arr.shape[1] != dof or len(arr) < 1:
+        raise ChekhovError(f"--path {path}: expected waypoints of shape (T, {dof}) rad, "
+                           f"got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ChekhovError(f"--path {path}: contains NaN or inf")
+    return arr
+
+
 def _cmd_show(args: argparse.Namespace) -> int:
     from chekhov.viewer.render import render_scene
     from chekhov.world import World
 
     world = World.load(args.scene)
     q = _parse_q(args.q, world.robot.dof)
-    if q is None:
+    path = seed = None
+    note = ""
+    if args.path is not None and args.case is not None:
+        raise ChekhovError("give --path or --case, not both")
+    if args.path is not None:
+        path = _load_path(args.path, world.robot.dof)
+        note = f", path of {len(path)} waypoints"
+    elif args.case is not None:
+        path, seed, note = _plan_case(world, args)
+    if q is None and path is None:
         q = np.zeros(world.robot.dof)
-    out = render_scene(world, q=q, out=args.out)
-    free = world.is_free(q)
-    print(f"wrote {out} ({world.scene.name}, q {'free' if free else 'IN COLLISION'})")
+    out = render_scene(world, q=q, path=path, seed=seed, out=args.out, ghosts=args.ghosts,
+                       title=args.title)
+    if args.save_path and path is not None:
+        np.save(args.save_path, path)
+    shown = q if q is not None else path[0]  # type: ignore[index]
+    free = world.is_free(shown)
+    print(f"wrote {out} ({world.scene.name}, q {'free' if free else 'IN COLLISION'}{note})")
     return 0
+
+
+def _plan_case(world: World, args: argparse.Namespace
+               ) -> tuple[np.ndarray, np.ndarray | None, str]:
+    """Plan case ``args.case`` with ``args.planner``; (path, seed, a note for the output)."""
+    from chekhov.bench.cases import CaseSet, cached_cases
+    from chekhov.roadmap.io import load_or_build_roadmap, load_roadmap
+    from chekhov.viewer.planning import ROADMAP_TRAJOPT, PlannerPool, PlanView
+
+    cases = CaseSet.load(args.cases, world) if args.cases else cached_cases(
+        world, max(20, args.case + 1))
+    if not 0 <= args.case < len(cases):
+        raise ChekhovError(f"--case {args.case}: only {len(cases)} cases")
+    roadmap = None
+    if args.planner == ROADMAP_TRAJOPT:
+        roadmap = (load_roadmap(args.roadmap, world) if args.roadmap
+                   else load_or_build_roadmap(world))
+    planner = PlannerPool(world, roadmap).get(args.planner)
+    result = planner.plan(cases.q_start[args.case], cases.goal(args.case))
+    view = PlanView.of(world, args.planner, result)
+    if view.path is None:
+        raise ChekhovError(f"{args.planner} found no path for case {args.case}: "
+                           f"{result.status}")
+    timing = ", ".join(f"{k} {1e3 * v:.0f} ms" for k, v in result.timing_s.items())
+    return view.path, view.seed, (f", {args.planner} case {args.case}: "
+                                  f"{1e3 * result.time_s:.0f} ms ({timing}), "
+                                  f"length {result.path_length:.2f} rad")
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
@@ -91,6 +159,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("scene", help="built-in scene name or scene YAML file")
     p.add_argument("--q", type=float, nargs="+", help="joint values (rad), group order")
     p.add_argument("--out", default="scene.png", help="PNG file to write")
+    p.add_argument("--path", help="trajectory to draw (robot ghosts along it): .npy, .npz or "
+                                  "text, (T, K) rad")
+    p.add_argument("--case", type=int, help="plan this case (cached cases, or --cases) and "
+                                            "draw the trajectory and its seed")
+    p.add_argument("--cases", help="case file for --case")
+    p.add_argument("--planner", default="Roadmap+TrajOpt",
+                   choices=["Roadmap+TrajOpt", "TrajOpt", "RRTConnect", "RRTConnect+TrajOpt"],
+                   help="planner for --case")
+    p.add_argument("--roadmap", help="roadmap file for --case (default: the cached one)")
+    p.add_argument("--ghosts", type=int, default=6, help="robot ghosts along the path")
+    p.add_argument("--title", help="picture title (default: the scene name)")
+    p.add_argument("--save-path", help="also save the drawn path as .npy")
     p.set_defaults(func=_cmd_show)
     p = sub.add_parser("demo", help="main job: roadmaps, Roadmap + TrajOpt plans, pictures")
     p.add_argument("--out", default="out/demo", help="folder for the pictures")

@@ -19,7 +19,8 @@ def _cmd_view(args: argparse.Namespace) -> int:
                else load_or_build_roadmap(world, progress=lambda s: print(s, flush=True)))
     cases = CaseSet.load(args.cases, world) if args.cases else cached_cases(world, args.n_cases)
     viewer = Viewer(world, roadmap, cases, host=args.host, port=args.port,
-                    show_spheres=args.spheres)
+                    show_spheres=args.spheres, show_roadmap=not args.hide_roadmap,
+                    show_edges=args.edges)
     print(f"chekhov viewer: {viewer.url}  ({world.scene.name}; Ctrl-C to stop)", flush=True)
     viewer.serve_forever()
     return 0
@@ -38,4 +39,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                                                        "localhost only)")
     p.add_argument("--port", type=int, default=8080, help="port (default 8080)")
     p.add_argument("--spheres", action="store_true", help="show the collision spheres")
+    p.add_argument("--hide-roadmap", action="store_true",
+                   help="start with the roadmap's nodes hidden (a GUI checkbox shows them)")
+    p.add_argument("--edges", action="store_true",
+                   help="start with the roadmap's edges shown (dense: off by default)")
     p.set_defaults(func=_cmd_view)

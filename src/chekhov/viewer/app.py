@@ -96,6 +96,8 @@ class Viewer:
         cases: start / goal cases to pick from; None: 20 cached cases (seed 0).
         host, port: where to listen (localhost by default); a taken port raises ViewerError.
         obstacle: shape of the draggable dynamic obstacle (default a forearm cylinder).
+        show_spheres, show_roadmap, show_edges: initial state of those layers (the collision
+            spheres, the roadmap's nodes, its edges; toggled in the GUI).
         plan_on_start: plan case 0 with Roadmap + TrajOpt before returning.
 
     Attributes:
@@ -107,6 +109,7 @@ class Viewer:
                  cases: CaseSet | None = None, *, host: str = "127.0.0.1", port: int = 8080,
                  obstacle: Shape | None = OBSTACLE_SHAPE, obstacle_name: str = OBSTACLE_NAME,
                  obstacle_pose: Array | None = None, show_spheres: bool = False,
+                 show_roadmap: bool = True, show_edges: bool = False,
                  plan_on_start: bool = True) -> None:
         if port != 0:
             check_port_free(host, port)
@@ -145,7 +148,7 @@ class Viewer:
         self.robot = RobotDrawing(self.server, self.robot_meshes, self.q_start)
         self.spheres = SphereDrawing(self.server, world, self.q_start, visible=show_spheres)
         self.handles["/roadmap/nodes"], self.handles["/roadmap/edges"] = draw_roadmap(
-            self.server, roadmap)
+            self.server, roadmap, show_roadmap, show_edges)
         self._add_markers()
         self.obstacles: dict[str, viser.TransformControlsHandle] = {}
         for o in world.scene.dynamic_objects:
@@ -158,7 +161,7 @@ class Viewer:
                                                  dynamic=True), T)
         self.handles["/plan/seed"] = draw_trace(self.server, "/plan/seed", None, SEED_RGB, 3.0)
         self.handles["/plan/path"] = draw_trace(self.server, "/plan/path", None, PATH_RGB, 5.0)
-        self._build_gui(show_spheres)
+        self._build_gui(show_spheres, show_roadmap, show_edges)
         self._worker = threading.Thread(target=self._replan_loop, daemon=True,
                                         name="chekhov-replan")
         self._worker.start()
@@ -300,7 +303,7 @@ class Viewer:
         gizmo.on_update(on_move)
 
     # --- GUI ----------------------------------------------------------------------------
-    def _build_gui(self, show_spheres: bool) -> None:
+    def _build_gui(self, show_spheres: bool, show_roadmap: bool, show_edges: bool) -> None:
         gui = self.server.gui
         h = self.handles
         rm = self.roadmap
@@ -323,8 +326,9 @@ class Viewer:
             h["gui/replan_time"] = gui.add_markdown("Drag the orange obstacle: Roadmap + "
                                                     "TrajOpt replans on every move.")
         with gui.add_folder("Show"):
-            h["gui/show_roadmap"] = gui.add_checkbox("roadmap (end effector)",
-                                                     initial_value=True)
+            h["gui/show_roadmap"] = gui.add_checkbox("roadmap nodes (end effector)",
+                                                     initial_value=show_roadmap)
+            h["gui/show_edges"] = gui.add_checkbox("roadmap edges", initial_value=show_edges)
             h["gui/show_seed"] = gui.add_checkbox("seed trace", initial_value=True)
             h["gui/show_spheres"] = gui.add_checkbox("collision spheres",
                                                      initial_value=show_spheres)
@@ -347,8 +351,11 @@ class Viewer:
 
         @h["gui/show_roadmap"].on_update
         def _(_: Any) -> None:
-            for name in ("/roadmap/nodes", "/roadmap/edges"):
-                h[name].visible = bool(h["gui/show_roadmap"].value)
+            h["/roadmap/nodes"].visible = bool(h["gui/show_roadmap"].value)
+
+        @h["gui/show_edges"].on_update
+        def _(_: Any) -> None:
+            h["/roadmap/edges"].visible = bool(h["gui/show_edges"].value)
 
         @h["gui/show_seed"].on_update
         def _(_: Any) -> None:

@@ -104,18 +104,19 @@ class SphereDrawing:
         self.show(self._q)
 
 
-def draw_roadmap(server: viser.ViserServer, roadmap: Roadmap, visible: bool = True
+def draw_roadmap(server: viser.ViserServer, roadmap: Roadmap, nodes_visible: bool = True,
+                 edges_visible: bool = False
                  ) -> tuple[viser.PointCloudHandle, viser.LineSegmentsHandle]:
     """The roadmap as end-effector positions of its nodes (points) and edges (segments)."""
     P = np.asarray(roadmap.ee_position, dtype=np.float32)
     nodes = server.scene.add_point_cloud("/roadmap/nodes", P, ROADMAP_NODE_RGB,
-                                         point_size=0.012, point_shape="circle",
-                                         precision="float32", visible=visible)
+                                         point_size=0.006, point_shape="circle",
+                                         precision="float32", visible=nodes_visible)
     E = np.asarray(roadmap.edges, dtype=np.int64).reshape(-1, 2)
     segs = P[E] if len(E) else np.zeros((1, 2, 3), np.float32)
     edges = server.scene.add_line_segments("/roadmap/edges", segs, ROADMAP_EDGE_RGB,
                                            thickness=1.0, thickness_units="screen",
-                                           visible=visible)
+                                           visible=edges_visible)
     return nodes, edges
 
 
@@ -133,6 +134,6 @@ def camera_for(world: World) -> tuple[Array, Array]:
     looking at the arm's workspace."""
     Tb = world.robot.T_world_base
     base, fwd, left = Tb[:3, 3], Tb[:3, 0], Tb[:3, 1]
-    look = base + 0.45 * fwd + 0.25 * left - np.array([0.0, 0.0, 0.15])
-    eye = base + 1.9 * fwd + 1.5 * left + np.array([0.0, 0.0, 0.7])
+    look = base + 0.4 * fwd + 0.2 * left - np.array([0.0, 0.0, 0.2])
+    eye = base + 1.5 * fwd + 2.6 * left + np.array([0.0, 0.0, 0.8])
     return eye, look

@@ -20,8 +20,8 @@ from chekhov.world import World
 Array = NDArray[np.float64]
 
 ROADMAP_TRAJOPT = "Roadmap+TrajOpt"
-PLANNER_FACTORIES: dict[str, Callable[[World, Roadmap], Planner]] = {
-    ROADMAP_TRAJOPT: lambda w, rm: RoadmapTrajOpt(w, rm),
+PLANNER_FACTORIES: dict[str, Callable[[World, Roadmap | None], Planner]] = {
+    ROADMAP_TRAJOPT: lambda w, rm: RoadmapTrajOpt(w, _need(rm)),
     "TrajOpt": lambda w, rm: TrajOptPlanner(w),
     "RRTConnect": lambda w, rm: OmplPlanner(w, "RRTConnect", seed=0),
     "RRTConnect+TrajOpt": lambda w, rm: SeededTrajOpt(w, OmplPlanner(w, "RRTConnect", seed=0)),
@@ -29,10 +29,16 @@ PLANNER_FACTORIES: dict[str, Callable[[World, Roadmap], Planner]] = {
 PLANNER_NAMES: tuple[str, ...] = tuple(PLANNER_FACTORIES)
 
 
+def _need(roadmap: Roadmap | None) -> Roadmap:
+    if roadmap is None:
+        raise ChekhovError(f"{ROADMAP_TRAJOPT} needs a roadmap")
+    return roadmap
+
+
 class PlannerPool:
     """One planner of each kind for a world, made on first use (they keep warm state)."""
 
-    def __init__(self, world: World, roadmap: Roadmap) -> None:
+    def __init__(self, world: World, roadmap: Roadmap | None) -> None:
         self.world = world
         self.roadmap = roadmap
         self._planners: dict[str, Planner] = {}

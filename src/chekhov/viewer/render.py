@@ -98,11 +98,14 @@ def robot_faces(world: World, q: Array) -> list[Array]:
 
 def render_scene(world: World, q: Array | None = None, path: Array | None = None,
                  out: str | Path = "scene.png", title: str | None = None,
-                 ghosts: int = 6, elev: float = 25.0, azim: float | None = None) -> Path:
+                 ghosts: int = 6, elev: float = 25.0, azim: float | None = None,
+                 seed: Array | None = None) -> Path:
     """Write a PNG of the scene with the robot at q (default: the path's start) and, if a path
-    (T, K) is given, ghosts of the robot along it and the end-effector trace."""
+    (T, K) is given, ghosts of the robot along it, the end-effector trace and its start (green)
+    and end (red); with ``seed`` (T', K), the seed's end-effector trace too (orange, dashed)."""
     fig = plt.figure(figsize=(8, 7), dpi=110)
     ax = fig.add_subplot(projection="3d")
+    ax.set_autoscale_on(False)  # limits are set below; autoscaling many polygons can overflow
     for o in world.scene.objects:
         s = o.shape
         size = s.half_extents if s.kind == "box" else (
@@ -118,8 +121,17 @@ def render_scene(world: World, q: Array | None = None, path: Array | None = None
             ax.add_collection3d(Poly3DCollection(robot_faces(world, P[i]), facecolor="#3070c0",
                                                  alpha=0.08 + 0.2 * k / len(idx), linewidth=0))
         ee = world.robot.compute_ee_poses(P)[:, :3, 3]
-        ax.plot(ee[:, 0], ee[:, 1], ee[:, 2], color="#c02020", linewidth=2)
+        ax.plot(ee[:, 0], ee[:, 1], ee[:, 2], color="#c02020", linewidth=2,
+                label="trajectory (end effector)")
+        ax.scatter(*ee[0], color="#20a020", s=30, label="start", depthshade=False)
+        ax.scatter(*ee[-1], color="#d02020", s=30, label="goal", depthshade=False)
         q = P[0] if q is None else q
+    if seed is not None:
+        es = world.robot.compute_ee_poses(np.atleast_2d(seed))[:, :3, 3]
+        ax.plot(es[:, 0], es[:, 1], es[:, 2], color="#f09020", linewidth=1.5,
+                linestyle="--", label="seed (end effector)")
+    if path is not None or seed is not None:
+        ax.legend(loc="upper left", fontsize=8)
     if q is not None:
         ax.add_collection3d(Poly3DCollection(robot_faces(world, q), facecolor="#d8dde3",
                                              edgecolor="#30303040", linewidth=0.1, alpha=0.9))
@@ -130,6 +142,12 @@ def render_scene(world: World, q: Array | None = None, path: Array | None = None
         fwd = world.robot.T_world_base[:3, 0]
         c = base + 0.5 * fwd
         lo, hi = np.array([c[0] - 1.1, c[1] - 1.1, 0.0]), np.array([c[0] + 1.1, c[1] + 1.1, 2.0])
+    traces = [world.robot.compute_ee_poses(np.atleast_2d(a))[:, :3, 3]
+              for a in (path, seed) if a is not None]
+    if traces:  # keep the traces inside the box
+        pts = np.vstack(traces)
+        lo = np.minimum(lo, pts.min(axis=0) - 0.05)
+        hi = np.maximum(hi, pts.max(axis=0) + 0.05)
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
     ax.set_zlim(lo[2], hi[2])
