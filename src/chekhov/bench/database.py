@@ -1,0 +1,372 @@
+"""Benchmark results in SQLite, in the layout of OMPL's benchmark database.
+
+OMPL's tables, as ``ompl_benchmark_statistics.py`` creates them (Planner Arena reads these):
+
+* ``experiments`` (id, name, totaltime, timelimit, memorylimit, runcount, version, hostname,
+  cpuinfo, date, seed, setup) — one per scene, case source and time limit; ``name`` is the
+  scene. Extra columns (as OMPL's experiment properties): ``scene_hash``, ``case_seed``,
+  ``case_source``, ``exact_substeps``, ``resolution``.
+* ``plannerConfigs`` (id, name, settings) — ``settings`` is the planner's configuration as JSON.
+* ``enums`` (name, value, description) — ``status`` (OMPL's PlannerStatus strings) and
+  ``failure_kind`` (ours, values added as they occur).
+* ``runs`` (id, experimentid, plannerid, + properties) with OMPL's property columns ``time``
+  REAL (s, planning time), ``solved`` BOOLEAN (a path was returned), ``status`` ENUM,
+  ``approximate_solution`` BOOLEAN (always 0: approximate answers count as failures),
+  ``solution_length`` REAL (rad, joint-space), ``correct_solution`` BOOLEAN (the exact
+  100-substep check), ``memory`` REAL (NULL: not measured), and ours: ``case_index``
+  INTEGER, ``success`` BOOLEAN (solved and exactly collision-free: the paper's success),
+  ``exact_collision`` BOOLEAN, ``failure_kind`` ENUM, ``waypoints`` INTEGER,
+  ``seed_time`` / ``trajopt_time`` REAL (s), ``seed_length`` REAL (rad), ``seed_found`` /
+  ``trajopt_ok`` / ``fallback_to_seed`` BOOLEAN, ``exact_check_time`` REAL (s, not part of
+  ``time``). One row per (experimentid, plannerid, case_index) (unique index ``runs_case``).
+* ``progress`` (runid, time) — OMPL's progress properties; empty here.
+* views ``bestPlannerConfigsPerExperiment`` and ``bestPlannerConfigs``, as OMPL computes them.
+
+Ours only (a side table, so that OMPL's tools see plain numeric runs): ``chekhov_runs``
+(runid → runs.id, scene, planner, case_index, case_hash, status text, failure_kind text,
+trajopt_status, timing_json — the breakdown of ``time`` in s —, info_json, worker, dof,
+path / seed_path — float32 little-endian bytes, row-major (T, dof), rad —, waypoints,
+seed_waypoints, finished) and ``chekhov_meta`` (key, value).
+
+Every run is written in its own transaction, so an interrupted benchmark keeps every run
+written before, and a rerun skips them (:meth:`BenchDatabase.done_cases`).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import sqlite3
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import IO, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from chekhov.bench.record import RunRecord
+from chekhov.errors import ChekhovError
+from chekhov.scene.io import write_atomic
+
+DB_FORMAT = "chekhov-bench"
+DB_VERSION = 1
+
+# ompl::base::PlannerStatus, in order (the strings OMPL's Benchmark writes to its logs).
+OMPL_STATUS = ("Unknown status", "Invalid start", "Invalid goal", "Unrecognized goal type",
+               "Timeout", "Approximate solution", "Exact solution", "Crash", "Abort")
+_STATUS_OF = {"solved": 6, "timeout": 4, "seed_timeout": 4, "invalid_start": 1,
+              "seed_invalid_start": 1, "no_ik": 2, "seed_no_ik": 2, "invalid_goal": 2,
+              "crash": 7}
+
+_SCHEMA = """
+CREATE TABLE IF NOT EXISTS experiments
+    (id INTEGER PRIMARY KEY AUTOINCREMENT, name VARCHAR(512),
+    totaltime REAL, timelimit REAL, memorylimit REAL, runcount INTEGER,
+    version VARCHAR(128), hostname VARCHAR(1024), cpuinfo TEXT,
+    date DATETIME, seed VARCHAR(24), setup TEXT,
+    scene_hash VARCHAR(64), case_seed INTEGER, case_source TEXT, exact_substeps INTEGER,
+    resolution REAL);
+CREATE TABLE IF NOT EXISTS plannerConfigs
+    (id INTEGER PRIMARY KEY AUTOINCREMENT,
+    name VARCHAR(512) NOT NULL, settings TEXT);
+CREATE TABLE IF NOT EXISTS enums
+    (name VARCHAR(512), value INTEGER, description TEXT,
+    PRIMARY KEY (name, value));
+CREATE TABLE IF NOT EXISTS runs
+    (id INTEGER PRIMARY KEY AUTOINCREMENT, experimentid INTEGER, plannerid INTEGER,
+    time REAL, solved BOOLEAN, status ENUM, approximate_solution BOOLEAN,
+    solution_length REAL, correct_solution BOOLEAN, memory REAL,
+    case_index INTEGER, success BOOLEAN, exact_collision BOOLEAN, failure_kind ENUM,
+    waypoints INTEGER, seed_time REAL, trajopt_time REAL, seed_length REAL,
+    seed_found BOOLEAN, trajopt_ok BOOLEAN, fallback_to_seed BOOLEAN, exact_check_time REAL,
+    FOREIGN KEY (experimentid) REFERENCES experiments(id) ON DELETE CASCADE,
+    FOREIGN KEY (plannerid) REFERENCES plannerConfigs(id) ON DELETE CASCADE);
+CREATE TABLE IF NOT EXISTS progress
+    (runid INTEGER, time REAL, PRIMARY KEY (runid, time),
+    FOREIGN KEY (runid) REFERENCES runs(id) ON DELETE CASCADE);
+CREATE UNIQUE INDEX IF NOT EXISTS runs_case ON runs(experimentid, plannerid, case_index);
+CREATE TABLE IF NOT EXISTS chekhov_runs
+    (runid INTEGER PRIMARY KEY, scene TEXT, planner TEXT, case_index INTEGER,
+    case_hash TEXT, status TEXT, failure_kind TEXT, trajopt_status TEXT, timing_json TEXT,
+    info_json TEXT, worker TEXT, dof INTEGER, path BLOB, waypoints INTEGER, seed_path BLOB,
+    seed_waypoints INTEGER, finished DATETIME,
+    FOREIGN KEY (runid) REFERENCES runs(id) ON DELETE CASCADE);
+CREATE TABLE IF NOT EXISTS chekhov_meta (key TEXT PRIMARY KEY, value TEXT);
+"""
+
+_VIEWS_BASE = """SELECT plannerid, plannerConfigs.name AS plannerName, experimentid,
+    solved, time AS total_time
+    FROM plannerConfigs INNER JOIN experiments INNER JOIN runs
+    ON plannerConfigs.id=runs.plannerid AND experiments.id=runs.experimentid"""
+
+
+class BenchDatabase:
+    """A benchmark database file (created on first use). Use as a context manager or call
+    :meth:`close`. Only one process writes (the runner's main process)."""
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            self.conn = sqlite3.connect(self.path, timeout=30.0, isolation_level=None)
+            self.conn.row_factory = sqlite3.Row
+            self.conn.execute("PRAGMA foreign_keys = ON")
+            self._create()
+        except sqlite3.DatabaseError as e:
+            raise ChekhovError(f"{self.path}: not a usable SQLite benchmark database: {e}")\
+                from e
+
+    def __enter__(self) -> BenchDatabase:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        self.conn.close()
+
+    @contextmanager
+    def transaction(self) -> Iterator[sqlite3.Connection]:
+        """Commit on success, roll back on any error (including KeyboardInterrupt)."""
+        try:
+            self.conn.execute("BEGIN IMMEDIATE")
+            yield self.conn
+        except BaseException:
+            self.conn.rollback()
+            raise
+        self.conn.commit()
+
+    # --- schema ---------------------------------------------------------------------------
+    def _create(self) -> None:
+        c = self.conn
+        meta = dict(c.execute("SELECT name, sql FROM sqlite_master WHERE name='chekhov_meta'")
+                    .fetchall())
+        if meta:
+            fmt = dict(c.execute("SELECT key, value FROM chekhov_meta").fetchall())
+            if fmt.get("format") != DB_FORMAT or int(fmt.get("version", 0)) > DB_VERSION:
+                raise ChekhovError(f"{self.path}: benchmark database format "
+                                   f"{fmt.get('format')} version {fmt.get('version')}; this "
+                                   f"chekhov writes {DB_FORMAT} version {DB_VERSION}")
+        elif c.execute("SELECT count(*) FROM sqlite_master WHERE name='runs'").fetchone()[0]:
+            raise ChekhovError(f"{self.path}: an OMPL benchmark database not written by "
+                               "chekhov; use another --db file")
+        c.executescript(_SCHEMA)
+        with self.transaction():
+            c.executemany("INSERT OR IGNORE INTO chekhov_meta VALUES (?, ?)",
+                          [("format", DB_FORMAT), ("version", str(DB_VERSION)),
+                           ("units", "time s, lengths rad, paths float32 rad (T, dof)")])
+            c.executemany("INSERT OR IGNORE INTO enums VALUES (?, ?, ?)",
+                          [("status", i, s) for i, s in enumerate(OMPL_STATUS)]
+                          + [("failure_kind", 0, "none")])
+            c.execute("DROP VIEW IF EXISTS bestPlannerConfigsPerExperiment")
+            c.execute("CREATE VIEW bestPlannerConfigsPerExperiment AS SELECT plannerid, "
+                      "experimentid, MIN(avg_solved) AS avg_solved, avg_total_time FROM "
+                      "(SELECT plannerid, plannerName, experimentid, AVG(solved) AS "
+                      "avg_solved, AVG(total_time) AS avg_total_time FROM (" + _VIEWS_BASE +
+                      ") GROUP BY plannerid, experimentid) GROUP BY plannerName, experimentid "
+                      "ORDER BY avg_solved DESC, avg_total_time ASC")
+            c.execute("DROP VIEW IF EXISTS bestPlannerConfigs")
+            c.execute("CREATE VIEW bestPlannerConfigs AS SELECT plannerid, MIN(avg_solved) AS "
+                      "avg_solved, avg_total_time FROM (SELECT plannerid, plannerName, "
+                      "AVG(solved) AS avg_solved, AVG(total_time) AS avg_total_time FROM ("
+                      + _VIEWS_BASE + ") GROUP BY plannerid) GROUP BY plannerName ORDER BY "
+                      "avg_solved DESC, avg_total_time ASC")
+
+    def tables(self) -> list[str]:
+        return [r[0] for r in self.conn.execute(
+            "SELECT name FROM sqlite_master WHERE type='table' ORDER BY name")]
+
+    # --- experiments and planner configs ----------------------------------------------
+    def experiment_id(self, scene: str, scene_hash: str, case_seed: int, case_source: str,
+                      time_limit_s: float, exact_substeps: int, resolution: float,
+                      setup: str = "", version: str = "", hostname: str = "",
+                      cpuinfo: str = "") -> int:
+        """The experiment of these settings (created when new)."""
+        row = self.conn.execute(
+            "SELECT id FROM experiments WHERE name=? AND scene_hash=? AND case_seed=? AND "
+            "case_source=? AND timelimit=? AND exact_substeps=? AND resolution=?",
+            (scene, scene_hash, case_seed, case_source, time_limit_s, exact_substeps,
+             resolution)).fetchone()
+        if row is not None:
+            return int(row[0])
+        with self.transaction() as c:
+            cur = c.execute(
+                "INSERT INTO experiments (name, totaltime, timelimit, memorylimit, runcount, "
+                "version, hostname, cpuinfo, date, seed, setup, scene_hash, case_seed, "
+                "case_source, exact_substeps, resolution) VALUES "
+                "(?, 0, ?, 0, 0, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                (scene, time_limit_s, version, hostname, cpuinfo,
+                 time.strftime("%Y-%m-%d %H:%M:%S"), str(case_seed), setup, scene_hash,
+                 case_seed, case_source, exact_substeps, resolution))
+            assert cur.lastrowid is not None
+            return int(cur.lastrowid)
+
+    def planner_id(self, name: str, settings: str) -> int:
+        """The plannerConfigs row of (name, settings) (created when new), as OMPL does."""
+        row = self.conn.execute("SELECT id FROM plannerConfigs WHERE name=? AND settings=?",
+                                (name, settings)).fetchone()
+        if row is not None:
+            return int(row[0])
+        with self.transaction() as c:
+            cur = c.execute("INSERT INTO plannerConfigs (name, settings) VALUES (?, ?)",
+                            (name, settings))
+            assert cur.lastrowid is not None
+            return int(cur.lastrowid)
+
+    def add_experiment_time(self, experiment_id: int, seconds: float, runcount: int) -> None:
+        """Add to ``totaltime`` (s) and raise ``runcount`` (cases per planner) to at least
+        ``runcount``."""
+        with self.transaction() as c:
+            c.execute("UPDATE experiments SET totaltime = totaltime + ?, runcount = "
+                      "MAX(runcount, ?) WHERE id=?", (seconds, runcount, experiment_id))
+
+    # --- runs ---------------------------------------------------------------------------
+    def done_cases(self, experiment_id: int, planner_id: int) -> dict[int, str]:
+        """case index → case hash of the runs already stored."""
+        rows = self.conn.execute(
+            "SELECT r.case_index, k.case_hash FROM runs r LEFT JOIN chekhov_runs k "
+            "ON k.runid = r.id WHERE r.experimentid=? AND r.plannerid=?",
+            (experiment_id, planner_id)).fetchall()
+        return {int(a): str(b) for a, b in rows}
+
+    def _failure_kind_value(self, c: sqlite3.Connection, kind: str) -> int:
+        row = c.execute("SELECT value FROM enums WHERE name='failure_kind' AND description=?",
+                        (kind,)).fetchone()
+        if row is not None:
+            return int(row[0])
+        v = int(c.execute("SELECT COALESCE(MAX(value), -1) + 1 FROM enums WHERE "
+                          "name='failure_kind'").fetchone()[0])
+        c.execute("INSERT INTO enums VALUES ('failure_kind', ?, ?)", (v, kind))
+        return v
+
+    def insert_run(self, experiment_id: int, planner_id: int, rec: RunRecord) -> int:
+        """Store one run (one transaction); returns runs.id. A run already stored for the same
+        case is left as it is (its id is returned)."""
+        with self.transaction() as c:
+            row = c.execute("SELECT id FROM runs WHERE experimentid=? AND plannerid=? AND "
+                            "case_index=?", (experiment_id, planner_id, rec.case_index)
+                            ).fetchone()
+            if row is not None:
+                return int(row[0])
+            fk = self._failure_kind_value(c, rec.failure_kind)
+            cur = c.execute(
+                "INSERT INTO runs (experimentid, plannerid, time, solved, status, "
+                "approximate_solution, solution_length, correct_solution, memory, case_index, "
+                "success, exact_collision, failure_kind, waypoints, seed_time, trajopt_time, "
+                "seed_length, seed_found, trajopt_ok, fallback_to_seed, exact_check_time) "
+                "VALUES (?, ?, ?, ?, ?, 0, ?, ?, NULL, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                (experiment_id, planner_id, rec.time_s, int(rec.solved),
+                 ompl_status(rec.status), _num(rec.path_length), _flag(rec.exact_valid),
+                 rec.case_index, int(rec.success),
+                 None if rec.exact_valid is None else int(not rec.exact_valid), fk,
+                 None if rec.path is None else len(rec.path), _num(rec.seed_time_s),
+                 _num(rec.trajopt_time_s), _num(rec.seed_length), _flag(rec.seed_found),
+                 _flag(rec.trajopt_ok), _flag(rec.fallback_to_seed), rec.exact_check_s))
+            runid = cur.lastrowid
+            assert runid is not None
+            dof = (rec.path.shape[1] if rec.path is not None else
+                   rec.seed_path.shape[1] if rec.seed_path is not None else None)
+            c.execute(
+                "INSERT INTO chekhov_runs VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, "
+                "?, ?)",
+                (runid, rec.scene, rec.planner, rec.case_index, rec.case_hash, rec.status,
+                 rec.failure_kind, rec.trajopt_status, json.dumps(rec.timing_s),
+                 json.dumps(rec.info, default=str), rec.worker, dof, pack_path(rec.path),
+                 None if rec.path is None else len(rec.path), pack_path(rec.seed_path),
+                 None if rec.seed_path is None else len(rec.seed_path),
+                 time.strftime("%Y-%m-%d %H:%M:%S")))
+            return int(runid)
+
+    # --- reading ------------------------------------------------------------------------
+    def experiments(self) -> list[dict[str, Any]]:
+        return [dict(r) for r in self.conn.execute("SELECT * FROM experiments ORDER BY id")]
+
+    def planner_configs(self) -> list[dict[str, Any]]:
+        return [dict(r) for r in self.conn.execute("SELECT * FROM plannerConfigs ORDER BY id")]
+
+    def rows(self, experiment_ids: list[int] | None = None, planners: list[str] | None = None,
+             max_case: int | None = None, paths: bool = False) -> list[dict[str, Any]]:
+        """Runs joined with their experiment, planner and side-table fields, one dict each
+        (``scene``, ``planner``, ``timelimit``, every ``runs`` column, ``status_text``,
+        ``failure_kind_text``, ``trajopt_status``, ``timing`` (dict, s); with ``paths``,
+        ``path`` / ``seed_path`` as (T, dof) float arrays or None)."""
+        where: list[str] = []
+        args: list[object] = []
+        if experiment_ids is not None:
+            where.append(f"r.experimentid IN ({','.join('?' * len(experiment_ids))})")
+            args += experiment_ids
+        if planners is not None:
+            where.append(f"p.name IN ({','.join('?' * len(planners))})")
+            args += planners
+        if max_case is not None:
+            where.append("r.case_index < ?")
+            args.append(max_case)
+        extra = ", k.path AS path_blob, k.seed_path AS seed_blob, k.dof AS dof" if paths else ""
+        sql = ("SELECT r.*, e.name AS scene, e.timelimit AS timelimit, p.name AS planner, "
+               "k.status AS status_text, k.failure_kind AS failure_kind_text, "
+               "k.trajopt_status AS trajopt_status, k.timing_json AS timing_json, "
+               "k.case_hash AS case_hash" + extra + " FROM runs r "
+               "JOIN experiments e ON e.id = r.experimentid "
+               "JOIN plannerConfigs p ON p.id = r.plannerid "
+               "LEFT JOIN chekhov_runs k ON k.runid = r.id"
+               + (" WHERE " + " AND ".join(where) if where else "")
+               + " ORDER BY r.experimentid, p.name, r.case_index")
+        out = []
+        for row in self.conn.execute(sql, args):
+            d = dict(row)
+            d["timing"] = json.loads(d.pop("timing_json") or "{}")
+            if paths:
+                dof = d.pop("dof")
+                d["path"] = unpack_path(d.pop("path_blob"), dof)
+                d["seed_path"] = unpack_path(d.pop("seed_blob"), dof)
+            out.append(d)
+        return out
+
+    def export_csv(self, path: str | Path) -> Path:
+        """All runs as CSV (one row each, no paths; ``timing`` as JSON), written atomically."""
+        rows = self.rows()
+        cols = ["scene", "timelimit", "planner", "case_index", "case_hash", "success", "solved",
+                "status_text", "failure_kind_text", "time", "solution_length",
+                "correct_solution", "exact_collision", "waypoints", "seed_found",
+                "seed_time", "seed_length", "trajopt_time", "trajopt_status", "trajopt_ok",
+                "fallback_to_seed", "exact_check_time", "timing"]
+
+        def write(f: IO[str]) -> None:
+            w = csv.writer(f)
+            w.writerow([c.replace("_text", "") for c in cols])
+            for r in rows:
+                w.writerow([json.dumps(r[c]) if c == "timing" else r[c] for c in cols])
+
+        out = Path(path)
+        write_atomic(out, write)
+        return out
+
+
+def ompl_status(status: str) -> int:
+    """OMPL PlannerStatus value of a planner status string (6 = exact solution)."""
+    return _STATUS_OF.get(status, 0)
+
+
+def pack_path(path: NDArray[np.float64] | None) -> bytes | None:
+    """A (T, K) path as float32 little-endian bytes (row-major); None stays None."""
+    if path is None:
+        return None
+    return np.ascontiguousarray(path, dtype="<f4").tobytes()
+
+
+def unpack_path(blob: bytes | None, dof: int | None) -> NDArray[np.float64] | None:
+    """Inverse of :func:`pack_path`: a (T, dof) float64 array."""
+    if blob is None or dof is None:
+        return None
+    return np.frombuffer(blob, dtype="<f4").astype(np.float64).reshape(-1, int(dof))
+
+
+def _num(x: float) -> float | None:
+    return None if x is None or not math.isfinite(x) else float(x)
+
+
+def _flag(x: bool | None) -> int | None:
+    return None if x is None else int(bool(x))

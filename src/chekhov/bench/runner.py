@@ -1,0 +1,170 @@
+"""The benchmark runner: every selected planner on the same cases of every scene, results into
+a :class:`~chekhov.bench.database.BenchDatabase`, resumable.
+
+    from chekhov.bench.runner import run_benchmark
+    from chekhov.bench.config import BenchConfig
+    out = run_benchmark(BenchConfig(("tabletop_pole",), ("Roadmap+TrajOpt", "TrajOpt"),
+                                    n_cases=20, time_limit_s=2.0), "bench.db")
+
+Flow: the main process loads each scene, its cases (``cached_cases`` or a case file) and, for
+Roadmap+TrajOpt, its roadmap (built and saved once, before any worker starts, so workers only
+load it); it records each planner's configuration (plannerConfigs) and skips the (scene,
+planner, case) runs the database already holds — checking that a stored run was made on the
+same case (content hash). The remaining runs go to the executor (local processes by default,
+or Ray); each finished run is written in its own transaction as it arrives, so an
+interruption loses nothing already written.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import socket
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from chekhov.bench.cases import CaseSet, cached_cases
+from chekhov.bench.config import BenchConfig
+from chekhov.bench.database import BenchDatabase
+from chekhov.bench.executors import run_tasks
+from chekhov.bench.progress import ProgressBar
+from chekhov.bench.registry import PlannerSpec, settings_text
+from chekhov.bench.task import RunTask, case_hash
+from chekhov.bench.worker import load_roadmap_for
+from chekhov.errors import ChekhovError
+from chekhov.roadmap.graph import Roadmap
+from chekhov.world import World
+
+
+@dataclass(frozen=True)
+class BenchOutcome:
+    """What :func:`run_benchmark` did.
+
+    Attributes:
+        db_path: the database. experiment_ids: scene → experiments.id.
+        planned: runs selected in all; skipped: already in the database; ran: run now.
+        time_s: s, wall time of the call. workers: processes or actors used.
+    """
+
+    db_path: str
+    experiment_ids: tuple[tuple[str, int], ...]
+    planned: int
+    skipped: int
+    ran: int
+    time_s: float
+    workers: int
+
+    def experiment_id(self, scene: str) -> int:
+        return dict(self.experiment_ids)[scene]
+
+
+def load_cases(world: World, config: BenchConfig) -> tuple[CaseSet, str]:
+    """The first ``config.n_cases`` cases of the scene and a description of their source."""
+    scene = world.scene.name
+    path = config.case_file(scene)
+    if path is None:
+        return (cached_cases(world, config.n_cases, config.case_seed),
+                f"generated (seed {config.case_seed})")
+    cases = CaseSet.load(path, world)
+    if len(cases) < config.n_cases:
+        raise ChekhovError(f"{path}: {len(cases)} cases, --cases asks for {config.n_cases}")
+    return (cases.head(config.n_cases),
+            f"file {Path(path).name} (seed {cases.seed}, {cases.replaced} replaced)")
+
+
+def run_benchmark(config: BenchConfig, db_path: str | Path, progress: bool = True
+                  ) -> BenchOutcome:
+    """Run what ``config`` selects into the database at ``db_path`` (see the module doc)."""
+    t0 = time.perf_counter()
+    db_path = Path(db_path)
+    tasks: list[RunTask] = []
+    skipped = 0
+    with BenchDatabase(db_path) as db:
+        exp_ids: dict[str, int] = {}
+        planner_ids: dict[tuple[str, str], int] = {}
+        per_scene: list[list[RunTask]] = []
+        for scene in config.scenes:
+            world = World.load(scene)
+            cases, source = load_cases(world, config)
+            roadmap = (load_roadmap_for(world, config)
+                       if "Roadmap+TrajOpt" in config.planners else None)
+            setup = json.dumps({"scene": world.scene.name, "robot": world.robot.name,
+                                "cases": source, "time_limit_s": config.time_limit_s,
+                                "resolution_rad": config.resolution,
+                                "exact_substeps": config.exact_substeps})
+            eid = db.experiment_id(
+                world.scene.name, world.scene.content_hash(), config.case_seed, source,
+                config.time_limit_s, config.exact_substeps, config.resolution, setup=setup,
+                version=_version(), hostname=socket.gethostname(), cpuinfo=_cpuinfo())
+            exp_ids[scene] = eid
+            scene_tasks: list[RunTask] = []
+            hashes = [case_hash(cases.q_start[i], cases.T_world_ee_goal[i])
+                      for i in range(len(cases))]
+
+            def get_roadmap(r: Roadmap | None = roadmap) -> Roadmap:
+                if r is None:  # pragma: no cover - loaded whenever Roadmap+TrajOpt runs
+                    raise ChekhovError("internal: no roadmap loaded")
+                return r
+
+            for name in config.planners:
+                spec = PlannerSpec(name, config.resolution, config.planner_seed)
+                planner = spec.build(world, get_roadmap)
+                pid = db.planner_id(name, settings_text(spec.settings(planner, roadmap)))
+                planner_ids[(scene, name)] = pid
+                done = db.done_cases(eid, pid)
+                for i in range(len(cases)):
+                    if i in done:
+                        if done[i] != hashes[i]:
+                            raise ChekhovError(
+                                f"{db_path}: the run of {name} on case {i} of '{scene}' was "
+                                f"made on another case (hash {done[i]}, now {hashes[i]}); "
+                                "use another --db file")
+                        skipped += 1
+                        continue
+                    scene_tasks.append(RunTask(scene, name, i, cases.q_start[i],
+                                               cases.T_world_ee_goal[i], config.time_limit_s,
+                                               _run_seed(config.planner_seed, i)))
+            per_scene.append(scene_tasks)
+        # case-major order: every scene and planner advances together, so an interrupted
+        # benchmark has comparable data and the ETA is representative
+        tasks = sorted((t for ts in per_scene for t in ts),
+                       key=lambda t: (t.case_index, config.scenes.index(t.scene),
+                                      config.planners.index(t.planner)))
+        workers = config.local_workers if config.executor == "local" else (config.workers or 0)
+        bar = ProgressBar(len(tasks), label=f"bench ({len(tasks)} runs, {skipped} done before)",
+                          enabled=progress)
+        spent: dict[int, float] = dict.fromkeys(exp_ids.values(), 0.0)
+        ran = 0
+        try:
+            for rec in run_tasks(tasks, config):
+                eid = exp_ids[rec.scene]
+                db.insert_run(eid, planner_ids[(rec.scene, rec.planner)], rec)
+                spent[eid] += rec.time_s + rec.exact_check_s
+                ran += 1
+                bar.update(failed=not rec.success)
+        finally:
+            bar.close()
+            for eid, s in spent.items():
+                db.add_experiment_time(eid, s, config.n_cases)
+    return BenchOutcome(str(db_path), tuple(exp_ids.items()), len(tasks) + skipped, skipped,
+                        ran, time.perf_counter() - t0, workers)
+
+
+def _run_seed(base: int, case_index: int) -> int:
+    """Per-run seed: the same for a case wherever and whenever it runs."""
+    return (int(base) * 1_000_003 + int(case_index)) % (2**63)
+
+
+def _version() -> str:
+    try:
+        from importlib.metadata import version
+        return f"chekhov {version('chekhov')}"
+    except Exception:  # pragma: no cover
+        return "chekhov"
+
+
+def _cpuinfo() -> str:
+    return f"{platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, " \
+           f"{platform.platform()}"

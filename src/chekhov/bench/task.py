@@ -1,0 +1,51 @@
+"""One benchmark run to do: a planner on one case of one scene."""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class RunTask:
+    """A planner on one case. Carries the case itself, so a worker (a process or a Ray actor
+    on another machine) needs no case file.
+
+    Attributes:
+        scene: scene name (as given to ``World.load``).
+        planner: registry name.
+        case_index: index of the case in the scene's case set.
+        q_start: (K,) start configuration, rad.
+        T_world_ee_goal: (4, 4) goal end-effector pose in the world (m).
+        time_limit_s: s, limit of the ``plan`` call.
+        seed: per-run seed of the planner's random streams (reproducible wherever it runs).
+    """
+
+    scene: str
+    planner: str
+    case_index: int
+    q_start: Array
+    T_world_ee_goal: Array
+    time_limit_s: float
+    seed: int
+
+    @property
+    def key(self) -> tuple[str, str, int]:
+        return (self.scene, self.planner, self.case_index)
+
+    @property
+    def case_hash(self) -> str:
+        """SHA-256 (hex, 16 chars) of the case's start and goal: ties a stored run to its case."""
+        return case_hash(self.q_start, self.T_world_ee_goal)
+
+
+def case_hash(q_start: Array, T_world_ee_goal: Array) -> str:
+    """Short content hash of one case (start configuration and goal pose, float64 bytes)."""
+    h = hashlib.sha256(np.ascontiguousarray(q_start, dtype=np.float64).tobytes())
+    h.update(np.ascontiguousarray(T_world_ee_goal, dtype=np.float64).tobytes())
+    return h.hexdigest()[:16]

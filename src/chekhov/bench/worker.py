@@ -1,0 +1,156 @@
+"""A benchmark worker: builds each world and planner once, runs tasks, re-checks every returned
+path with the exact checker. One per process (local executor) or Ray actor."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import socket
+import time
+import traceback
+from typing import Any
+
+import numpy as np
+
+from chekhov.bench.config import BenchConfig
+from chekhov.bench.record import RunRecord
+from chekhov.bench.registry import PlannerSpec
+from chekhov.bench.task import RunTask
+from chekhov.planners.base import Planner, path_length
+from chekhov.roadmap.graph import Roadmap
+from chekhov.robot.goal import Goal
+from chekhov.world import World
+
+WARM_UP_LIMIT_S = 0.5
+
+
+class BenchWorker:
+    """Runs :class:`RunTask` s for one :class:`BenchConfig`; caches worlds, roadmaps and
+    planners by scene (built on first use, never shared between processes). With
+    ``config.warm_up`` each planner first plans its first task once, untimed and discarded,
+    with a limit of at most ``WARM_UP_LIMIT_S`` s (numba caches, first-call setup)."""
+
+    def __init__(self, config: BenchConfig) -> None:
+        self.config = config
+        self.worlds: dict[str, World] = {}
+        self.roadmaps: dict[str, Roadmap] = {}
+        self.planners: dict[tuple[str, str], Planner] = {}
+        self.warm: set[tuple[str, str]] = set()
+        self.name = f"{socket.gethostname()}:{os.getpid()}"
+
+    def world(self, scene: str) -> World:
+        w = self.worlds.get(scene)
+        if w is None:
+            w = World.load(scene)
+            w.fast  # noqa: B018 - build the checkers before any run is timed
+            w.exact  # noqa: B018
+            self.worlds[scene] = w
+        return w
+
+    def roadmap(self, scene: str) -> Roadmap:
+        r = self.roadmaps.get(scene)
+        if r is None:
+            r = load_roadmap_for(self.world(scene), self.config)
+            self.roadmaps[scene] = r
+        return r
+
+    def planner(self, scene: str, name: str) -> Planner:
+        p = self.planners.get((scene, name))
+        if p is None:
+            spec = PlannerSpec(name, self.config.resolution, self.config.planner_seed)
+            p = spec.build(self.world(scene), lambda: self.roadmap(scene))
+            self.planners[(scene, name)] = p
+        return p
+
+    def run(self, task: RunTask) -> RunRecord:
+        """Run one task. A planner that raises yields a "crash" record (with the error)."""
+        world = self.world(task.scene)
+        planner = self.planner(task.scene, task.planner)
+        goal = Goal.pose(np.asarray(task.T_world_ee_goal, dtype=float))
+        q0 = np.asarray(task.q_start, dtype=float)
+        if self.config.warm_up and (task.scene, task.planner) not in self.warm:
+            # first call of a planner in a process: JIT loading, caches; not timed
+            self.warm.add((task.scene, task.planner))
+            with contextlib.suppress(Exception):  # the timed run reports any error
+                planner.plan(q0, goal, min(task.time_limit_s, WARM_UP_LIMIT_S))
+        reseed(planner, task.seed)
+        t0 = time.perf_counter()
+        try:
+            r = planner.plan(q0, goal, task.time_limit_s)
+        except Exception as e:  # a crashing planner is a result, not the end of the benchmark
+            return RunRecord(task.scene, task.planner, task.case_index, task.case_hash,
+                             solved=False, status="crash", time_s=time.perf_counter() - t0,
+                             info={"error": f"{type(e).__name__}: {e}",
+                                   "traceback": traceback.format_exc(limit=4)},
+                             worker=self.name)
+        path = np.asarray(r.path, dtype=float) if r.success and r.path is not None else None
+        exact_valid: bool | None = None
+        t1 = time.perf_counter()
+        if path is not None:
+            exact_valid = bool(world.exact.path_valid(path, substeps=self.config.exact_substeps))
+        exact_s = time.perf_counter() - t1
+        seed_path, seed_found = _seed_of(task.planner, r.seed, r.info, r.status)
+        seed_time = float(r.timing_s["seed"]) if "seed" in r.timing_s else float("nan")
+        trajopt_status = r.info.get("trajopt_status")
+        fallback = r.info.get("fallback_to_seed")
+        return RunRecord(
+            scene=task.scene, planner=task.planner, case_index=task.case_index,
+            case_hash=task.case_hash, solved=path is not None, status=r.status,
+            time_s=float(r.time_s), timing_s={k: float(v) for k, v in r.timing_s.items()},
+            path=path, path_length=path_length(path) if path is not None else float("nan"),
+            exact_valid=exact_valid, exact_check_s=exact_s, seed_path=seed_path,
+            seed_length=path_length(seed_path) if seed_path is not None else float("nan"),
+            seed_time_s=seed_time, seed_found=seed_found,
+            trajopt_status=str(trajopt_status) if trajopt_status is not None else None,
+            fallback_to_seed=bool(fallback) if fallback is not None else None,
+            info=_scalars(r.info), worker=self.name)
+
+
+def load_roadmap_for(world: World, config: BenchConfig) -> Roadmap:
+    """The roadmap of ``world`` for ``config`` (loaded, or built and saved once)."""
+    from pathlib import Path
+
+    from chekhov.roadmap.io import load_or_build_roadmap
+
+    path = (Path(config.roadmap_dir) / f"{world.scene.name}.npz"
+            if config.roadmap_dir is not None else None)
+    return load_or_build_roadmap(world, config.roadmap_config, path)
+
+
+def reseed(planner: Any, seed: int) -> None:
+    """Give the planner (and a seed planner inside it) fresh random streams for this run, so a
+    run's outcome does not depend on which worker ran which runs before. OMPL's own sampler
+    is process-global and not reseeded."""
+    for p in (planner, getattr(planner, "seed_planner", None)):
+        if p is not None and isinstance(getattr(p, "rng", None), np.random.Generator):
+            p.rng = np.random.default_rng(seed)
+
+
+def _seed_of(planner: str, seed: Any, info: dict[str, object], status: str
+             ) -> tuple[np.ndarray | None, bool | None]:
+    """The seed path worth storing and whether the seed stage found one."""
+    if planner == "Roadmap+TrajOpt":
+        rs = info.get("roadmap_seed")
+        if rs is not None:
+            return np.asarray(rs, dtype=float), True
+        return None, False
+    if planner.endswith("+TrajOpt"):
+        if status.startswith("seed_") or seed is None:
+            return None, False
+        return np.asarray(seed, dtype=float), True
+    return None, None
+
+
+def _scalars(info: dict[str, object]) -> dict[str, object]:
+    """The JSON-able scalar entries of a PlanResult.info (arrays and nested paths dropped)."""
+    out: dict[str, object] = {}
+    for k, v in info.items():
+        if isinstance(v, bool | int | float | str) or v is None:
+            out[k] = v
+        elif isinstance(v, np.generic):
+            out[k] = v.item()
+        elif isinstance(v, dict) and all(isinstance(x, int | float | str | bool)
+                                         for x in v.values()):
+            out[k] = {str(a): (b.item() if isinstance(b, np.generic) else b)
+                      for a, b in v.items()}
+    return out
