@@ -16,7 +16,7 @@ from chekhov.roadmap.graph import Roadmap
 from chekhov.roadmap.seeder import RoadmapSeeder, SeederConfig
 from chekhov.robot.goal import Goal
 from chekhov.trajopt.config import TrajOptConfig
-from chekhov.trajopt.problem import build_trajopt
+from chekhov.trajopt.problem import build_trajopt, straight_line_seed
 from chekhov.trajopt.solver import solve_trajopt, validate_path
 from chekhov.world import World
 
@@ -31,6 +31,11 @@ class RoadmapTrajOpt:
     checker (waypoints a free straight motion can skip are dropped), so TrajOpt starts close
     to its optimum; ``info["roadmap_seed"]`` keeps the roadmap's own path.
 
+    When the roadmap cannot connect the start or goal ("no_connection", the paper's roadmap
+    failure) or dynamic obstacles cut every route ("no_path"), ``straight_line_fallback``
+    (default) runs TrajOpt from a straight line to the goal configuration instead
+    (``info["fallback"] = "straight_line"``, ``info["roadmap_status"]`` the roadmap's status).
+
     When the optimised trajectory fails the exact check, the (exactly checked) seed is returned
     with ``info["fallback_to_seed"] = True``; when that fails too, the result is a failure
     with status "collision". ``time_s`` includes the validation.
@@ -38,13 +43,14 @@ class RoadmapTrajOpt:
 
     def __init__(self, world: World, roadmap: Roadmap, config: TrajOptConfig | None = None,
                  seeder_config: SeederConfig | None = None, name: str = "Roadmap+TrajOpt",
-                 shortcut: bool = True) -> None:
+                 shortcut: bool = True, straight_line_fallback: bool = True) -> None:
         self.world = world
         self.roadmap = roadmap
         self.config = config if config is not None else TrajOptConfig()
         self.seeder = RoadmapSeeder(world, roadmap, seeder_config)
         self.name = name
         self.shortcut = shortcut
+        self.straight_line_fallback = straight_line_fallback
         self._distances = TrajectoryDistances(world.fast)
 
     def plan(self, q_start: Array, goal: Goal, time_limit_s: float = 10.0) -> PlanResult:
@@ -52,6 +58,11 @@ class RoadmapTrajOpt:
         s = self.seeder.seed(np.asarray(q_start, dtype=float), goal)
         timing = {"seed": s.timing_s.get("total", time.perf_counter() - t0)}
         if not s.success or s.path is None:
+            if self.straight_line_fallback and s.status in ("no_connection", "no_path"):
+                q_goal = self._goal_configuration(np.asarray(q_start, dtype=float), goal)
+                if q_goal is not None:
+                    return self._straight_line(q_start, goal, q_goal, s.status, t0, timing,
+                                               s.info)
             return PlanResult(False, None, s.status, time.perf_counter() - t0, timing,
                               info={"seed_info": s.info})
         t1 = time.perf_counter()
@@ -88,3 +99,40 @@ class RoadmapTrajOpt:
                               seed=seed, info=info)
         return PlanResult(False, None, "collision", time.perf_counter() - t0, timing, seed=seed,
                           info=info)
+
+    def _goal_configuration(self, q_start: Array, goal: Goal) -> Array | None:
+        """The goal configuration, or the pose goal's IK solution nearest q_start."""
+        if goal.q is not None:
+            return goal.q
+        assert goal.T_world_ee is not None
+        Q, _ = self.seeder.goal_configurations(goal.T_world_ee)
+        if len(Q) == 0:
+            return None
+        return np.asarray(Q[int(np.argmin(np.linalg.norm(Q - q_start, axis=1)))])
+
+    def _straight_line(self, q_start: Array, goal: Goal, q_goal: Array, roadmap_status: str,
+                       t0: float, timing: dict[str, float], seed_info: dict[str, object]
+                       ) -> PlanResult:
+        """TrajOpt from a straight line when the roadmap has no answer; never a colliding
+        result (TrajOpt validates it)."""
+        seed = straight_line_seed(q_start, q_goal, self.config.n_waypoints)
+        info: dict[str, object] = {"fallback": "straight_line", "roadmap_status": roadmap_status,
+                                   "seed_info": seed_info, "fallback_to_seed": False}
+        try:
+            problem = build_trajopt(self.world, q_start, goal, seed, self.config,
+                                    self._distances)
+        except ChekhovError as e:
+            return PlanResult(False, None, roadmap_status, time.perf_counter() - t0, timing,
+                              info={**info, "error": str(e)})
+        r = solve_trajopt(problem)
+        timing["optimise"] = r.optimise_s
+        timing["validate"] = r.timing_s["validate"]
+        info.update({"trajopt_status": r.status, "iterations": r.iterations,
+                     "trajopt_cpu_s": r.info["cpu_s"], "trajectory": r.trajectory,
+                     "roadmap_seed": problem.seed, "optimised_valid": r.valid,
+                     "trajopt_timing_s": r.timing_s})
+        if r.success:
+            return PlanResult(True, r.trajectory, "solved", time.perf_counter() - t0, timing,
+                              seed=problem.seed, info=info)
+        return PlanResult(False, None, roadmap_status, time.perf_counter() - t0, timing,
+                          seed=problem.seed, info=info)
