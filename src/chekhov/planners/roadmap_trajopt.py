@@ -4,6 +4,7 @@ by TrajOpt, validated exactly. It never returns a trajectory the exact checker r
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -34,7 +35,8 @@ class RoadmapTrajOpt:
     When the roadmap cannot connect the start or goal ("no_connection", the paper's roadmap
     failure) or dynamic obstacles cut every route ("no_path"), ``straight_line_fallback``
     (default) runs TrajOpt from a straight line to the goal configuration instead
-    (``info["fallback"] = "straight_line"``, ``info["roadmap_status"]`` the roadmap's status).
+    (``info["fallback"] = "straight_line"``, ``info["roadmap_status"]`` the roadmap's status),
+    for at most ``fallback_time_s`` seconds of optimisation.
 
     When the optimised trajectory fails the exact check, the (exactly checked) seed is returned
     with ``info["fallback_to_seed"] = True``; when that fails too, the result is a failure
@@ -43,7 +45,8 @@ class RoadmapTrajOpt:
 
     def __init__(self, world: World, roadmap: Roadmap, config: TrajOptConfig | None = None,
                  seeder_config: SeederConfig | None = None, name: str = "Roadmap+TrajOpt",
-                 shortcut: bool = True, straight_line_fallback: bool = True) -> None:
+                 shortcut: bool = True, straight_line_fallback: bool = True,
+                 fallback_time_s: float = 0.25) -> None:
         self.world = world
         self.roadmap = roadmap
         self.config = config if config is not None else TrajOptConfig()
@@ -51,6 +54,7 @@ class RoadmapTrajOpt:
         self.name = name
         self.shortcut = shortcut
         self.straight_line_fallback = straight_line_fallback
+        self.fallback_time_s = fallback_time_s
         self._distances = TrajectoryDistances(world.fast)
 
     def plan(self, q_start: Array, goal: Goal, time_limit_s: float = 10.0) -> PlanResult:
@@ -119,8 +123,9 @@ class RoadmapTrajOpt:
         info: dict[str, object] = {"fallback": "straight_line", "roadmap_status": roadmap_status,
                                    "seed_info": seed_info, "fallback_to_seed": False}
         try:
-            problem = build_trajopt(self.world, q_start, goal, seed, self.config,
-                                    self._distances)
+            cfg = replace(self.config, time_limit_s=min(self.config.time_limit_s,
+                                                        self.fallback_time_s))
+            problem = build_trajopt(self.world, q_start, goal, seed, cfg, self._distances)
         except ChekhovError as e:
             return PlanResult(False, None, roadmap_status, time.perf_counter() - t0, timing,
                               info={**info, "error": str(e)})
