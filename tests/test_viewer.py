@@ -163,3 +163,19 @@ def test_viewer_renders_in_headless_chromium(world, roadmap, cases, tmp_path):
             proc.wait(timeout=10)
         except subprocess.TimeoutExpired:
             proc.kill()
+
+
+def test_show_draws_a_trajectory_file(world, cases, tmp_path, capsys):
+    from chekhov.cli import main
+
+    path = np.linspace(cases.q_start[0], cases.q_goal[0], 12)
+    np.save(tmp_path / "path.npy", path)
+    out = tmp_path / "plan.png"
+    assert main(["show", "tabletop_pole", "--path", str(tmp_path / "path.npy"), "--out",
+                 str(out), "--ghosts", "3"]) == 0
+    assert out.is_file() and out.stat().st_size > 10_000
+    assert "path of 12 waypoints" in capsys.readouterr().out
+    np.savetxt(tmp_path / "bad.csv", path[:, :5], delimiter=",")
+    assert main(["show", "tabletop_pole", "--path", str(tmp_path / "bad.csv"), "--out",
+                 str(out)]) == 2
+    assert "expected waypoints of shape (T, 7)" in capsys.readouterr().err
