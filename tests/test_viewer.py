@@ -95,6 +95,14 @@ def test_replanning_through_the_python_api_changes_the_trajectory(world, roadmap
         assert after.shape != before.shape or not np.allclose(after, before, atol=1e-3)
         assert world.fast.path_valid(second.path)
         assert second.result.time_s < 5.0
+        # what a gizmo drag does: a background replan, its time shown in the panel
+        v.move_obstacle(make_transform(mid + np.array([0.0, 0.0, 0.05])))
+        v.request_replan()
+        t_end = time.monotonic() + 20
+        while not v.replan_times_s and time.monotonic() < t_end:
+            time.sleep(0.05)
+        assert v.replan_times_s, "the background replan did not run"
+        assert "last replan" in v.handles["gui/replan_time"].content
 
 
 def test_taken_port_is_a_clear_error(world, roadmap, cases):

@@ -280,7 +280,7 @@ class Viewer:
                 return
             T = _pose_of(gizmo)
             self.goal = Goal.pose(T)
-            self._request(plan_goal=True)
+            self.request_replan(plan_goal=True)
 
         gizmo.on_update(on_goal)
 
@@ -298,7 +298,7 @@ class Viewer:
             with self._lock:
                 self.world.move_obstacle(name, _pose_of(gizmo))
             if self.handles["gui/live"].value:
-                self._request()
+                self.request_replan()
 
         gizmo.on_update(on_move)
 
@@ -323,7 +323,7 @@ class Viewer:
             h["gui/play"] = gui.add_checkbox("play", initial_value=True)
         with gui.add_folder("Dynamic obstacle"):
             h["gui/live"] = gui.add_checkbox("replan on move", initial_value=True)
-            h["gui/replan_time"] = gui.add_markdown("Drag the orange obstacle: Roadmap + "
+            h["gui/replan_time"] = gui.add_markdown("Drag the red-orange obstacle: Roadmap + "
                                                     "TrajOpt replans on every move.")
         with gui.add_folder("Show"):
             h["gui/show_roadmap"] = gui.add_checkbox("roadmap nodes (end effector)",
@@ -338,11 +338,11 @@ class Viewer:
         @h["gui/case"].on_update
         def _(_: Any) -> None:
             self.select_case(int(h["gui/case"].value), plan=False)
-            self._request(plan_goal=True)
+            self.request_replan(plan_goal=True)
 
         @h["gui/plan"].on_click
         def _(_: Any) -> None:
-            self._request(plan_goal=True)
+            self.request_replan(plan_goal=True)
 
         @h["gui/t"].on_update
         def _(_: Any) -> None:
@@ -367,8 +367,10 @@ class Viewer:
             self.spheres.set_visible(bool(h["gui/show_spheres"].value))
 
     # --- background work ----------------------------------------------------------------
-    def _request(self, plan_goal: bool = False) -> None:
-        """Ask the worker to plan: the GUI's planner for a new goal, else a live replan."""
+    def request_replan(self, plan_goal: bool = False) -> None:
+        """Ask the background worker to plan (returns at once): with ``plan_goal`` the GUI's
+        planner to the current goal, else a live Roadmap + TrajOpt replan (what a gizmo move
+        does); requests made while it plans are merged into one."""
         if plan_goal:
             self._goal_pending = True
         self._dirty.set()
