@@ -11,10 +11,17 @@ from __future__ import annotations
 import argparse
 import sys
 
-from chekhov.cli import cases_commands, roadmap_commands, scene_commands, view_commands
+from chekhov.cli import (
+    bench_commands,
+    cases_commands,
+    roadmap_commands,
+    scene_commands,
+    view_commands,
+)
 from chekhov.errors import ChekhovError
 
-COMMAND_GROUPS = [scene_commands, cases_commands, roadmap_commands, view_commands]
+COMMAND_GROUPS = [scene_commands, cases_commands, roadmap_commands, view_commands,
+                  bench_commands]
 
 
 def build_parser() -> argparse.ArgumentParser:

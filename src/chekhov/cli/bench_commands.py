@@ -1,0 +1,121 @@
+"""Benchmark commands: ``chekhov bench`` and ``chekhov report``.
+
+    chekhov bench [--scenes SCENE...] [--planners NAME...] [--cases N] [--time-limit S]
+                  [--db FILE] [--workers W] [--executor local|ray] [--address A]
+                  [--summary-json FILE] [--csv FILE] [--case-seed S] [--case-file FILE...]
+                  [--report DIR] [--no-progress]
+    chekhov report DB --out DIR
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from chekhov.bench.config import DEFAULT_TIME_LIMIT_S, EXECUTORS
+from chekhov.errors import ChekhovError
+
+
+def _cmd_bench(args: argparse.Namespace) -> int:
+    from chekhov.bench.cases import CaseSet
+    from chekhov.bench.config import BenchConfig
+    from chekhov.bench.database import BenchDatabase
+    from chekhov.bench.registry import expand_planner_names
+    from chekhov.bench.runner import run_benchmark
+    from chekhov.bench.summary import compute_stats, format_table, summary_json
+    from chekhov.scene.io import builtin_scenes, write_atomic
+
+    scenes = tuple(args.scenes or builtin_scenes())
+    case_files = []
+    for f in args.case_file or []:
+        scene = CaseSet.load(f).scene
+        if scene not in scenes:
+            raise ChekhovError(f"--case-file {f}: cases of scene '{scene}', which is not in "
+                               f"--scenes {list(scenes)}")
+        case_files.append((scene, str(f)))
+    config = BenchConfig(scenes=scenes, planners=expand_planner_names(args.planners),
+                         n_cases=args.cases, time_limit_s=args.time_limit,
+                         case_seed=args.case_seed, case_files=tuple(case_files),
+                         workers=args.workers, executor=args.executor, address=args.address)
+    print(f"bench: {len(config.scenes)} scene(s) × {len(config.planners)} planner(s) × "
+          f"{config.n_cases} case(s), time limit {config.time_limit_s:g} s per plan, "
+          f"executor {config.executor}, database {args.db}", file=sys.stderr)
+    out = run_benchmark(config, args.db, progress=not args.no_progress)
+    print(f"bench: {out.ran} run(s) done, {out.skipped} already in {args.db}, "
+          f"{out.time_s:.1f} s", file=sys.stderr)
+    with BenchDatabase(args.db) as db:
+        rows = db.rows([eid for _, eid in out.experiment_ids], list(config.planners),
+                       config.n_cases)
+        if args.csv:
+            db.export_csv(args.csv)
+    stats = compute_stats(rows)
+    print(format_table(stats))
+    if args.summary_json:
+        doc = summary_json(stats, {"database": str(args.db),
+                                   "time_limit_s": config.time_limit_s,
+                                   "cases_per_scene": config.n_cases,
+                                   "planners": list(config.planners),
+                                   "executor": config.executor})
+        text = json.dumps(doc, indent=1) + "\n"
+        write_atomic(Path(args.summary_json), lambda f: f.write(text))
+        print(f"wrote {args.summary_json}", file=sys.stderr)
+    if args.report:
+        from chekhov.bench.report import write_report
+        files = write_report(args.db, args.report)
+        print(f"wrote {files.markdown}", file=sys.stderr)
+    return 0
+
+
+def _cmd_report(args: argparse.Namespace) -> int:
+    from chekhov.bench.report import write_report
+
+    files = write_report(args.db, args.out)
+    print(f"wrote {files.markdown}, {files.summary_json.name}, {files.csv.name} and "
+          f"{len(files.images)} PNG(s) in {Path(args.out)}")
+    return 0
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    from chekhov.bench.registry import GROUPS, PLANNER_NAMES
+
+    b = sub.add_parser(
+        "bench", help="run planners on the same cases of each scene into a results database",
+        description="Run every selected planner on the same cases of every scene; each run's "
+        "outcome, timing, path and exact collision check go to an SQLite database in OMPL's "
+        "benchmark layout. Resumable: runs already in the database are skipped.")
+    b.add_argument("--scenes", nargs="+", metavar="SCENE",
+                   help="built-in scene names or scene files (default: all built-in scenes)")
+    b.add_argument("--planners", nargs="+", default=["all"], metavar="NAME",
+                   help=f"planners ({', '.join(PLANNER_NAMES)}) or groups "
+                        f"({', '.join(f'{k}: {len(v)}' for k, v in GROUPS.items())}); "
+                        "default all")
+    b.add_argument("--cases", type=int, default=20, metavar="N",
+                   help="cases per scene (default 20)")
+    b.add_argument("--time-limit", type=float, default=DEFAULT_TIME_LIMIT_S, metavar="S",
+                   help=f"time limit of every plan call, s (default {DEFAULT_TIME_LIMIT_S:g}; "
+                        "the paper: 300)")
+    b.add_argument("--db", default="bench.db", metavar="FILE",
+                   help="results database (created or resumed; default bench.db)")
+    b.add_argument("--workers", type=int, metavar="W",
+                   help="worker processes / Ray actors (default: CPU count / cluster CPUs)")
+    b.add_argument("--executor", choices=EXECUTORS, default="local",
+                   help="local processes (default) or a Ray cluster")
+    b.add_argument("--address", metavar="ADDR",
+                   help="Ray cluster address (with --executor ray; default: a local Ray)")
+    b.add_argument("--summary-json", metavar="FILE",
+                   help="write per scene and planner statistics and runtime ratios as JSON")
+    b.add_argument("--csv", metavar="FILE", help="also export every run of the database as CSV")
+    b.add_argument("--case-seed", type=int, default=0, help="seed of generated cases")
+    b.add_argument("--case-file", nargs="+", metavar="FILE",
+                   help="case files (chekhov cases generate) to use instead of generated "
+                        "cases, one per scene")
+    b.add_argument("--report", metavar="DIR", help="also write the report into DIR")
+    b.add_argument("--no-progress", action="store_true", help="no progress bar")
+    b.set_defaults(func=_cmd_bench)
+    r = sub.add_parser("report", help="Markdown report with the paper's tables and PNG plots "
+                       "from a benchmark database")
+    r.add_argument("db", help="benchmark database (chekhov bench --db)")
+    r.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    r.set_defaults(func=_cmd_report)
