@@ -1,4 +1,5 @@
-"""Numba forward and inverse kinematics of a serial revolute chain, for hot loops (roadmap and planners).
+"""Numba forward and inverse kinematics of a serial revolute chain, for hot loops
+(roadmap and planners).
 
 ``chekhov.robot.ik.solve_ik`` (pinocchio, Python loop) costs ~0.5 ms a seeded solve; the
 roadmap solves IK for every semantic node at build time and for every pose goal at query time,
