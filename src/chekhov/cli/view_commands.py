@@ -4,8 +4,15 @@ from __future__ import annotations
 
 import argparse
 
+from chekhov.errors import ChekhovError
+
 
 def _cmd_view(args: argparse.Namespace) -> int:
+    try:
+        import viser  # noqa: F401
+    except ImportError as e:
+        raise ChekhovError("chekhov view needs the viewer extra: pip install 'chekhov[viewer]' "
+                           f"({e})") from e
     from chekhov.viewer.app import check_port_free
 
     check_port_free(args.host, args.port)  # fail fast, before loading anything
