@@ -80,7 +80,7 @@ def config_collides(q, chain, spheres, groups, static, dyn, fixed, fixed_csr, se
     sk, sR, sp, ss = static
     dk, dR, dp, ds = dyn
     fk, fR, fp, fs = fixed
-    fstart, fidx = fixed_csr
+    _, _, fallow, clc, clr, cls, clm = fixed_csr
     origin, h, delta, V, gfix = grids
     gk, eR, ep, es, pad = gexact
     chain_fk(q, parent, R0, p0, axis, Rb, pb)
@@ -140,11 +140,17 @@ def config_collides(q, chain, spheres, groups, static, dyn, fixed, fixed_csr, se
                     maybe = True
             if maybe:
                 n = 0
-                for ii in range(fstart[g], fstart[g + 1]):
-                    o = fidx[ii]
-                    if signed_distance(fk[o], fR[o], fp[o], fs[o], gw[g]) < gr[g]:
-                        cand[n] = o
-                        n += 1
+                for c in range(clc.shape[0]):  # clusters of fixed parts, then their members
+                    dc = np.sqrt((gw[g, 0] - clc[c, 0]) ** 2 + (gw[g, 1] - clc[c, 1]) ** 2
+                                 + (gw[g, 2] - clc[c, 2]) ** 2)
+                    if dc - clr[c] >= gr[g]:
+                        continue
+                    for ii in range(cls[c], cls[c + 1]):
+                        o = clm[ii]
+                        if fallow[g, o] and \
+                                signed_distance(fk[o], fR[o], fp[o], fs[o], gw[g]) < gr[g]:
+                            cand[n] = o
+                            n += 1
                 npend = _group_hits(g, 1, fk, fR, fp, fs, cand, n, cw, sr, rin, gstart, gk,
                                     pend, npend)
                 if npend < 0:
