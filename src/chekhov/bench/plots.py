@@ -61,7 +61,11 @@ def runtime_distribution(rows: list[dict[str, Any]], stats: Stats, path: Path) -
         names = planner_order(list(stats[(scene, limit)]))
         data = [[max(r["time"], 1e-4) for r in rows if r["scene"] == scene
                  and float(r["timelimit"]) == limit and r["planner"] == n] for n in names]
-        ax.boxplot(data, vert=False, whis=(5, 95), showfliers=True, flierprops={"ms": 2})
+        style: dict[str, Any] = {"whis": (5, 95), "showfliers": True, "flierprops": {"ms": 2}}
+        try:
+            ax.boxplot(data, orientation="horizontal", **style)   # matplotlib >= 3.10
+        except TypeError:
+            ax.boxplot(data, vert=False, **style)
         ax.set_yticks(range(1, len(names) + 1), names)
         ax.set_xscale("log")
         ax.axvline(limit, color="grey", ls=":", lw=1)
