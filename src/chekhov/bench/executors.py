@@ -95,8 +95,10 @@ def run_ray(tasks: Sequence[RunTask], config: BenchConfig) -> Iterator[RunRecord
     try:
         n_actors = config.workers or max(1, int(ray.cluster_resources().get("CPU", 1)))
         n_actors = min(n_actors, len(tasks))
+        from chekhov.bench.ray_worker import RayWorker
+
         actor_cls = ray.remote(num_cpus=1, runtime_env={"env_vars": _SINGLE_THREAD_ENV}
-                               )(_RayWorker)
+                               )(RayWorker)
         actors = [actor_cls.remote(config) for _ in range(n_actors)]
         pending: dict[Any, Any] = {}
         queue = list(tasks)
@@ -116,17 +118,6 @@ def run_ray(tasks: Sequence[RunTask], config: BenchConfig) -> Iterator[RunRecord
     finally:
         if started:
             ray.shutdown()
-
-
-class _RayWorker:
-    """A Ray actor around :class:`BenchWorker` (decorated with ``ray.remote`` at run time so
-    that Ray stays optional)."""
-
-    def __init__(self, config: BenchConfig) -> None:
-        self.worker = BenchWorker(config)
-
-    def run(self, task: RunTask) -> RunRecord:
-        return self.worker.run(task)
 
 
 def _import_ray() -> Any:
