@@ -47,9 +47,9 @@ from typing import IO, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from chekhov.bench.files import write_file
 from chekhov.bench.record import RunRecord
 from chekhov.errors import ChekhovError
-from chekhov.scene.io import write_atomic
 
 DB_FORMAT = "chekhov-bench"
 DB_VERSION = 1
@@ -340,9 +340,7 @@ class BenchDatabase:
             for r in rows:
                 w.writerow([json.dumps(r[c]) if c == "timing" else r[c] for c in cols])
 
-        out = Path(path)
-        write_atomic(out, write)
-        return out
+        return write_file(path, write)
 
 
 def ompl_status(status: str) -> int:

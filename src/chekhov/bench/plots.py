@@ -16,8 +16,8 @@ from typing import IO, Any
 
 import numpy as np
 
+from chekhov.bench.files import write_file
 from chekhov.bench.summary import ROADMAP, PlannerStats
-from chekhov.scene.io import write_atomic
 
 Stats = dict[tuple[str, float], dict[str, PlannerStats]]
 
@@ -33,7 +33,7 @@ def _save(fig: Any, path: Path) -> Path:
     def write(f: IO[bytes]) -> None:
         fig.savefig(f, format="png", dpi=110, bbox_inches="tight")
 
-    write_atomic(path, write, mode="wb")
+    write_file(path, write, mode="wb")
     _plt().close(fig)
     return path
 

@@ -12,11 +12,12 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
 from chekhov.bench import paper_results as paper
 from chekhov.bench import plots
 from chekhov.bench.database import BenchDatabase
+from chekhov.bench.files import write_text
 from chekhov.bench.summary import (
     ROADMAP,
     PlannerStats,
@@ -27,7 +28,6 @@ from chekhov.bench.summary import (
     targets,
 )
 from chekhov.errors import ChekhovError
-from chekhov.scene.io import write_atomic
 
 Stats = dict[tuple[str, float], dict[str, PlannerStats]]
 SAMPLING = ("RRTConnect", "RRT", "LazyPRM", "RRT*", "PRM*")
@@ -66,18 +66,11 @@ def write_report(db_path: str | Path, out_dir: str | Path) -> ReportFiles:
         images.append(fig3)
     summary = summary_json(stats, {"database": str(db_path)})
     js = out / "summary.json"
-    _write_text(js, json.dumps(summary, indent=1) + "\n")
+    write_text(js, json.dumps(summary, indent=1) + "\n")
     md = out / "report.md"
-    _write_text(md, markdown(db_path, stats, experiments, configs, rows,
+    write_text(md, markdown(db_path, stats, experiments, configs, rows,
                              [p.name for p in images]))
     return ReportFiles(md, js, csv_path, tuple(images))
-
-
-def _write_text(path: Path, text: str) -> None:
-    def write(f: IO[str]) -> None:
-        f.write(text)
-
-    write_atomic(path, write)
 
 
 # --- Markdown ------------------------------------------------------------------------------

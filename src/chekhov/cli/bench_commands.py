@@ -22,10 +22,11 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     from chekhov.bench.cases import CaseSet
     from chekhov.bench.config import BenchConfig
     from chekhov.bench.database import BenchDatabase
+    from chekhov.bench.files import write_text
     from chekhov.bench.registry import expand_planner_names
     from chekhov.bench.runner import run_benchmark
     from chekhov.bench.summary import compute_stats, format_table, summary_json
-    from chekhov.scene.io import builtin_scenes, write_atomic
+    from chekhov.scene.io import builtin_scenes
 
     scenes = tuple(args.scenes or builtin_scenes())
     case_files = []
@@ -58,8 +59,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
                                    "cases_per_scene": config.n_cases,
                                    "planners": list(config.planners),
                                    "executor": config.executor})
-        text = json.dumps(doc, indent=1) + "\n"
-        write_atomic(Path(args.summary_json), lambda f: f.write(text))
+        write_text(args.summary_json, json.dumps(doc, indent=1) + "\n")
         print(f"wrote {args.summary_json}", file=sys.stderr)
     if args.report:
         from chekhov.bench.report import write_report
