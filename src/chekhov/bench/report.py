@@ -23,6 +23,7 @@ from chekhov.bench.summary import (
     PlannerStats,
     compute_stats,
     format_table,
+    length_ratios,
     runtime_ratios,
     summary_json,
     targets,
@@ -184,10 +185,11 @@ def _both(ours: str, theirs: str) -> str:
 def _summary_table(stats: Stats) -> str:
     L = ["| scene | planner | cases | failure rate | mean / median / p95 runtime (s) | "
          "mean / median path length (rad) | collision rate (exact) | Roadmap+TrajOpt "
-         "runtime ratio mean / median |",
-         "|---|---|---|---|---|---|---|---|"]
+         "runtime ratio mean / median | Roadmap+TrajOpt length ratio, common cases |",
+         "|---|---|---|---|---|---|---|---|---|"]
     for (scene, limit), per in sorted(stats.items()):
         rat = runtime_ratios(per)
+        lrat = length_ratios(per)
         for n in plots.planner_order(list(per)):
             s = per[n]
             r = rat.get(n)
@@ -196,8 +198,12 @@ def _summary_table(stats: Stats) -> str:
                      f"{_s(s.median_runtime_s)} / {_s(s.p95_runtime_s)} | "
                      f"{_s(s.mean_path_length_rad, 2)} / {_s(s.median_path_length_rad, 2)} | "
                      f"{_pc(s.collision_rate)} | "
-                     + (f"{_s(r['mean'])} / {_s(r['median'])}" if r else "—") + " |")
-    L.append("\nRatio < 1: Roadmap+TrajOpt is faster than that planner.\n")
+                     + (f"{_s(r['mean'])} / {_s(r['median'])}" if r else "—") + " | "
+                     + _s(lrat.get(n), 3) + " |")
+    L.append("\nRuntime ratio < 1: Roadmap+TrajOpt is faster than that planner. Length ratio: "
+             "Roadmap+TrajOpt's mean path length over that planner's on the cases both "
+             "solved (the mean path length column averages each planner's own solved cases, "
+             "which favours planners that fail the hard ones).\n")
     L.append("```\n" + format_table(stats) + "\n```")
     return "\n".join(L)
 
