@@ -32,7 +32,6 @@ class TrajOptPlanner:
         self.config = config if config is not None else TrajOptConfig()
         self.name = name
         self._distances = TrajectoryDistances(world.fast)
-        self._rng = np.random.default_rng(0)
         try:
             self._kinematics: ChainKinematics | None = ChainKinematics.from_robot(world.robot)
         except ChekhovError:
@@ -46,8 +45,9 @@ class TrajOptPlanner:
         if goal.q is not None or self._kinematics is None:
             return goal_configuration(self.world, q_start, goal)
         assert goal.T_world_ee is not None
+        rng = np.random.default_rng(0)  # the same answer for the same query, every time
         for _ in range(3):
-            seeds = np.vstack([q_start, self.world.robot.sample_uniform(self._rng, n_seeds)])
+            seeds = np.vstack([q_start, self.world.robot.sample_uniform(rng, n_seeds)])
             Q, ok = self._kinematics.solve(goal.T_world_ee, seeds, stop_after=n_solutions)
             Q = Q[ok]
             Q = Q[self.world.fast.valid(Q)] if len(Q) else Q
@@ -69,7 +69,10 @@ class TrajOptPlanner:
 
 
 class SeededTrajOpt:
-    """Any planner's path as the seed of TrajOpt (resampled to ≤ ``config.max_step_rad``)."""
+    """Any planner's path as the seed of TrajOpt (resampled to ≤ ``config.max_step_rad``).
+
+    The seed planner gets ``time_limit_s``; TrajOpt then gets its own ``config.time_limit_s``
+    (the paper adds the two stages' times)."""
 
     def __init__(self, world: World, seed_planner: Planner,
                  config: TrajOptConfig | None = None) -> None:
@@ -85,9 +88,10 @@ class SeededTrajOpt:
         if not seeded.success or seeded.path is None:
             return PlanResult(False, None, f"seed_{seeded.status}", time.perf_counter() - t0,
                               timing_s={"seed": seeded.time_s}, info=dict(seeded.info))
-        remaining = max(time_limit_s - (time.perf_counter() - t0), 1e-3)
+        # TrajOpt gets its own budget (config.time_limit_s), as in the paper, where the two
+        # stages' times add up: optimal seed planners use all of time_limit_s
         return _optimise(self.world, self.config, self._distances, q_start, goal, seeded.path,
-                         remaining, t0, {"seed": seeded.time_s})
+                         self.config.time_limit_s, t0, {"seed": seeded.time_s})
 
 
 def _optimise(world: World, config: TrajOptConfig, distances: TrajectoryDistances,
