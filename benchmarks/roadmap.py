@@ -10,10 +10,13 @@ deterministic for a given --seed. One JSON object per scene; ``bench_scene`` ret
 dict so other planners' figures can be added.
 
 ``roadmap_trajopt`` (also under ``semantic_off`` and ``dynamic``) holds the Roadmap + TrajOpt
-planner's figures on the same cases: failure_rate, median_ms, mean_ms, p95_ms (wall, whole
+planner's figures on the same cases (ours: a 20 ms straight-line TrajOpt try, then the roadmap;
+``roadmap_trajopt_paper``: every query seeded from the roadmap, the paper's planner):
+failure_rate, median_ms, mean_ms, p95_ms (wall, whole
 query including validation), median_cpu_ms / mean_cpu_ms (process CPU time: the one-core cost,
 robust to other load), mean_path_length_rad, mean_roadmap_seed_length_rad,
-mean_length_ratio_to_seed, optimised_collision_rate (exact check before fallback),
+mean_length_ratio_to_seed (roadmap-seeded answers only), roadmap_seeded_rate,
+optimised_collision_rate (exact check before fallback),
 fallback_rate and returned_collision_rate (must be 0).
 """
 
@@ -119,14 +122,17 @@ def run_queries(world: World, roadmap: Roadmap, starts: np.ndarray, goals: np.nd
 
 
 def run_planner(world: World, roadmap: Roadmap, starts: np.ndarray, goals: np.ndarray,
-                seeder_config: SeederConfig) -> dict[str, object]:
+                seeder_config: SeederConfig, straight_line_first: bool = True
+                ) -> dict[str, object]:
     """Roadmap + TrajOpt on the cases: wall and CPU time of whole queries (seed, shortcut,
     TrajOpt, validation), path lengths, and collisions by the exact checker at 100 substeps:
     of the optimised trajectories before any fallback, and of what was returned (must be 0)."""
-    planner = RoadmapTrajOpt(world, roadmap, seeder_config=seeder_config)
+    planner = RoadmapTrajOpt(world, roadmap, seeder_config=seeder_config,
+                             straight_line_first=straight_line_first)
     T_goals = world.robot.compute_ee_poses(goals)
     planner.plan(starts[0], Goal.pose(T_goals[0]))  # load compiled kernels
     wall, cpu, lengths, seed_lengths, ratios = [], [], [], [], []
+    roadmap_seeded = 0
     optimised_bad = returned_bad = optimised = fallbacks = 0
     for q0, T in zip(starts, T_goals, strict=True):
         c0 = time.process_time()
@@ -144,10 +150,12 @@ def run_planner(world: World, roadmap: Roadmap, starts: np.ndarray, goals: np.nd
             same = traj is not None and np.array_equal(np.asarray(traj), r.path)
             ok = traj_ok if same else world.exact.path_valid(r.path, substeps=100)
             returned_bad += not ok
-            seed_len = path_length(np.asarray(r.info["roadmap_seed"]))
             lengths.append(r.path_length)
-            seed_lengths.append(seed_len)
-            ratios.append(r.path_length / seed_len)
+            if r.info.get("seed_kind") == "roadmap":
+                roadmap_seeded += 1
+                seed_len = path_length(np.asarray(r.info["roadmap_seed"]))
+                seed_lengths.append(seed_len)
+                ratios.append(r.path_length / seed_len)
     n = len(starts)
     ms = 1e3
     return {
@@ -161,6 +169,7 @@ def run_planner(world: World, roadmap: Roadmap, starts: np.ndarray, goals: np.nd
         "mean_roadmap_seed_length_rad": round(float(np.mean(seed_lengths)), 3)
         if seed_lengths else None,
         "mean_length_ratio_to_seed": round(float(np.mean(ratios)), 3) if ratios else None,
+        "roadmap_seeded_rate": round(roadmap_seeded / n, 4),
         "optimised_collision_rate": round(optimised_bad / max(1, optimised), 4),
         "fallback_rate": round(fallbacks / n, 4),
         "returned_collision_rate": round(returned_bad / n, 4),
@@ -205,6 +214,8 @@ def bench_scene(name: str, n_cases: int = 500, seed: int = 0, config: RoadmapCon
     out.update(roadmap_figures(rm, build_s))
     out.update(run_queries(world, rm, starts, goals, seeder_config))
     out["roadmap_trajopt"] = run_planner(world, rm, starts, goals, seeder_config)
+    out["roadmap_trajopt_paper"] = run_planner(world, rm, starts, goals, seeder_config,
+                                               straight_line_first=False)
     rm_off, build_off = roadmap_for(world, replace(config, semantic=False), cache)
     out["semantic_off"] = {**roadmap_figures(rm_off, build_off),
                            **run_queries(world, rm_off, starts, goals, seeder_config),

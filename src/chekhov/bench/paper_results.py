@@ -20,7 +20,8 @@ SCENE_TITLES = {"tabletop_pole": "Tabletop with a Pole",
 
 # our planner name -> the paper's row name
 PAPER_PLANNER = {"RRTConnect": "RRT", "LazyPRM": "LazyPRM", "RRT*": "RRT*", "PRM*": "PRM*",
-                 "TrajOpt": "TrajOpt", "Roadmap+TrajOpt": "Roadmap"}
+                 "TrajOpt": "TrajOpt", "Roadmap+TrajOpt": "Roadmap",
+                 "Roadmap+TrajOpt(paper)": "Roadmap"}
 
 # Table I: Evaluation of current sampling-based and trajectory optimization planners.
 # (failure rate, average runtime s, average path length rad)

@@ -4,7 +4,10 @@
 name                      planner
 ========================  ==================================================================
 ``Roadmap+TrajOpt``       :class:`~chekhov.planners.roadmap_trajopt.RoadmapTrajOpt` on the
-                          scene's roadmap (``load_or_build_roadmap``), the paper's planner
+                          scene's roadmap (``load_or_build_roadmap``): ours, with a 20 ms
+                          straight-line TrajOpt try before the roadmap seed
+``Roadmap+TrajOpt(paper)`` the same with ``straight_line_first=False``: the paper's planner,
+                          every query seeded from the roadmap
 ``TrajOpt``               :class:`~chekhov.planners.trajopt_planner.TrajOptPlanner`, straight-
                           line seed, T = 30
 ``RRTConnect``            OMPL RRTConnect (the bidirectional RRT that OpenRAVE's BasicRRT is,
@@ -32,9 +35,11 @@ from chekhov.planners.base import Planner
 from chekhov.roadmap.graph import Roadmap
 from chekhov.world import World
 
-BASE_PLANNERS = ("Roadmap+TrajOpt", "TrajOpt", "RRTConnect", "RRT", "RRT*", "PRM*", "LazyPRM")
+BASE_PLANNERS = ("Roadmap+TrajOpt", "Roadmap+TrajOpt(paper)", "TrajOpt", "RRTConnect", "RRT",
+                 "RRT*", "PRM*", "LazyPRM")
 SEEDS = ("RRTConnect", "RRT", "RRT*", "PRM*", "LazyPRM")
-PLANNER_NAMES: tuple[str, ...] = ("Roadmap+TrajOpt", "TrajOpt", "RRTConnect",
+PLANNER_NAMES: tuple[str, ...] = ("Roadmap+TrajOpt", "Roadmap+TrajOpt(paper)", "TrajOpt",
+                                  "RRTConnect",
                                   "RRTConnect+TrajOpt", "RRT", "RRT+TrajOpt", "RRT*",
                                   "RRT*+TrajOpt", "PRM*", "PRM*+TrajOpt", "LazyPRM",
                                   "LazyPRM+TrajOpt")
@@ -42,10 +47,12 @@ _OMPL_KIND = {"RRTConnect": "RRTConnect", "RRT": "RRT", "RRT*": "RRTstar", "PRM*
 _ALIASES = {n.lower(): n for n in PLANNER_NAMES}
 _ALIASES.update({"rrtstar": "RRT*", "prmstar": "PRM*", "rrtstar+trajopt": "RRT*+TrajOpt",
                  "prmstar+trajopt": "PRM*+TrajOpt", "roadmap": "Roadmap+TrajOpt",
+                 "roadmap-paper": "Roadmap+TrajOpt(paper)",
                  "trajopt-straight": "TrajOpt"})
 # Named groups accepted by --planners.
 GROUPS = {"all": PLANNER_NAMES,
-          "paper": ("Roadmap+TrajOpt", "TrajOpt", "RRTConnect", "RRTConnect+TrajOpt",
+          "paper": ("Roadmap+TrajOpt", "Roadmap+TrajOpt(paper)", "TrajOpt", "RRTConnect",
+                    "RRTConnect+TrajOpt",
                     "LazyPRM", "LazyPRM+TrajOpt", "RRT*", "RRT*+TrajOpt", "PRM*",
                     "PRM*+TrajOpt"),
           "fast": ("Roadmap+TrajOpt", "TrajOpt", "RRTConnect", "RRTConnect+TrajOpt")}
@@ -102,9 +109,10 @@ class PlannerSpec:
         from chekhov.planners.trajopt_planner import SeededTrajOpt, TrajOptPlanner
 
         name = canonical_planner_name(self.name)
-        if name == "Roadmap+TrajOpt":
+        if name in ("Roadmap+TrajOpt", "Roadmap+TrajOpt(paper)"):
             from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt
-            return RoadmapTrajOpt(world, roadmap(), name=name)
+            return RoadmapTrajOpt(world, roadmap(), name=name,
+                                  straight_line_first=name == "Roadmap+TrajOpt")
         if name == "TrajOpt":
             return TrajOptPlanner(world, name=name)
         base = seed_planner_name(name)
@@ -145,6 +153,9 @@ class PlannerSpec:
             d["roadmap_nodes"] = len(p.roadmap.nodes)
             d["roadmap_edges"] = len(p.roadmap.edges)
             d["shortcut"] = p.shortcut
+            d["straight_line_first"] = p.straight_line_first
+            d["straight_line_time_s"] = p.straight_line_time_s
+            d["straight_line_fallback"] = p.straight_line_fallback
             d["seeder"] = asdict(p.seeder.config) if hasattr(p.seeder, "config") else {}
             d["trajopt"] = _trajopt_settings(p.config)
         elif isinstance(p, OmplPlanner | LazyPRM):

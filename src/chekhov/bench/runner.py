@@ -89,7 +89,8 @@ def run_benchmark(config: BenchConfig, db_path: str | Path, progress: bool = Tru
             world = World.load(scene)
             cases, source = load_cases(world, config)
             roadmap = (load_roadmap_for(world, config)
-                       if "Roadmap+TrajOpt" in config.planners else None)
+                       if any(n.startswith("Roadmap+TrajOpt") for n in config.planners)
+                       else None)
             setup = json.dumps({"scene": world.scene.name, "robot": world.robot.name,
                                 "cases": source, "time_limit_s": config.time_limit_s,
                                 "resolution_rad": config.resolution,

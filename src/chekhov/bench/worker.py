@@ -129,7 +129,7 @@ def reseed(planner: Any, seed: int) -> None:
 def _seed_of(planner: str, seed: Any, info: dict[str, object], status: str
              ) -> tuple[np.ndarray | None, bool | None]:
     """The seed path worth storing and whether the seed stage found one."""
-    if planner == "Roadmap+TrajOpt":
+    if planner.startswith("Roadmap+TrajOpt"):
         rs = info.get("roadmap_seed")
         if rs is not None:
             return np.asarray(rs, dtype=float), True
