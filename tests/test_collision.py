@@ -215,3 +215,19 @@ def test_dense_path_check_equals_checking_every_configuration(world_of, scene):
         assert w.fast.first_dense_collision(P, 100) == ref
         kinds.add(ref is None)
     assert kinds == {True, False}
+
+
+def test_certified_motion_checks_equal_the_bisection_checks(world_of):
+    """FastChecker.motions_valid (clearance certificates) and the bisection-order kernel
+    check the same configurations and agree on every motion."""
+    from chekhov.collision import validity
+
+    w = world_of("tabletop_pole")
+    Q = w.robot.sample_uniform(np.random.default_rng(9), 3000)
+    Q = Q[w.fast.valid(Q)]
+    A, B = Q[:300], Q[300:600]
+    for Y in (B, A + 0.3 * (B - A)):
+        got = w.fast.motions_valid(A, Y, 0.02)
+        ref = validity.motions_valid(A, Y, 0.02, *w.fast._args())
+        np.testing.assert_array_equal(got, ref)
+        assert 0 < got.mean() < 1

@@ -40,6 +40,91 @@ def _grid_lower_bound(origin, h, delta, values, c):  # pragma: no cover - compil
 
 
 @njit(cache=True)
+def _walk(P0, P1, n, m_first, m_last, check_ends, lever, chain, spheres, groups, static, dyn,
+          fixed, fixed_csr, self_pairs, grids, gexact, rin, work, until, puntil, step_len, q,
+          Rc, pc, gwc):  # pragma: no cover - compiled
+    """Configurations P0 + (m / n)(P1 - P0) for m = m_first … m_last, in order: the first m
+    the fast checker calls colliding, or -1. Clearance certificates skip the rest (see the
+    module docstring); with ``check_ends`` False, m = 0 and m = n only give certificates."""
+    K = P0.shape[0]
+    parent, R0, p0, axis = chain
+    _, gc, gr, gj = groups
+    dk, dR, dp, ds = dyn
+    origin, h, delta, V, gfix = grids
+    G = gr.shape[0]
+    Rb, pb, cw, gw, done, cand, pend = work
+    for g in range(G):
+        until[g] = -1
+        s_ = 0.0
+        for i in range(K):
+            s_ += abs(P1[i] - P0[i]) * lever[g, i]
+        step_len[g] = s_ / max(n, 1) + 1e-12
+    for k in range(self_pairs.shape[0]):
+        puntil[k] = -1
+    for m in range(m_first, m_last + 1):
+        for i in range(K):
+            q[i] = P0[i] + (m / n) * (P1[i] - P0[i]) if n > 0 else P0[i]
+        chain_needed = True
+        need_full = False
+        for g in range(G):
+            if until[g] >= m:
+                continue
+            if chain_needed:
+                chain_fk(q, parent, R0, p0, axis, Rc, pc)
+                for gg in range(G):
+                    j = gj[gg]
+                    for a in range(3):
+                        gwc[gg, a] = (Rc[j, a, 0] * gc[gg, 0] + Rc[j, a, 1] * gc[gg, 1]
+                                      + Rc[j, a, 2] * gc[gg, 2] + pc[j, a])
+                chain_needed = False
+            d = _grid_lower_bound(origin, h, delta, V[0], gwc[g])
+            if gfix[g] >= 0:
+                d = min(d, _grid_lower_bound(origin, h, delta, V[gfix[g]], gwc[g]))
+            for o in range(dk.shape[0]):
+                d = min(d, signed_distance(dk[o], dR[o], dp[o], ds[o], gwc[g]))
+            d -= gr[g]
+            if d > 0.0:
+                until[g] = m + int(d / step_len[g])
+            else:
+                need_full = True
+        for k in range(self_pairs.shape[0]):
+            if puntil[k] >= m:
+                continue
+            a = self_pairs[k, 0]
+            b = self_pairs[k, 1]
+            if chain_needed:
+                chain_fk(q, parent, R0, p0, axis, Rc, pc)
+                for gg in range(G):
+                    j = gj[gg]
+                    for x in range(3):
+                        gwc[gg, x] = (Rc[j, x, 0] * gc[gg, 0] + Rc[j, x, 1] * gc[gg, 1]
+                                      + Rc[j, x, 2] * gc[gg, 2] + pc[j, x])
+                chain_needed = False
+            d = np.sqrt((gwc[a, 0] - gwc[b, 0]) ** 2 + (gwc[a, 1] - gwc[b, 1]) ** 2
+                        + (gwc[a, 2] - gwc[b, 2]) ** 2) - gr[a] - gr[b]
+            if d > 0.0:
+                puntil[k] = m + int(d / (step_len[a] + step_len[b]))
+            else:
+                need_full = True
+        if not need_full:
+            continue
+        if not check_ends and (m == 0 or m == n):
+            continue
+        if config_collides(q, chain, spheres, groups, static, dyn, fixed, fixed_csr,
+                           self_pairs, grids, gexact, rin, Rb, pb, cw, gw, done, cand, pend):
+            return m
+    return -1
+
+
+@njit(cache=True)
+def _buffers(K, spheres, groups, static, dyn, fixed, self_pairs):  # pragma: no cover
+    G = groups[2].shape[0]
+    return (_work(K, spheres, groups, static, dyn, fixed, self_pairs),
+            np.empty(G, dtype=np.int64), np.empty(self_pairs.shape[0], dtype=np.int64),
+            np.empty(G), np.empty(K), np.empty((K, 3, 3)), np.empty((K, 3)), np.empty((G, 3)))
+
+
+@njit(cache=True)
 def first_dense_collision(P, substeps, lever, chain, spheres, groups, static, dyn, fixed,
                           fixed_csr, self_pairs, grids, gexact, rin
                           ):  # pragma: no cover - compiled
@@ -49,88 +134,56 @@ def first_dense_collision(P, substeps, lever, chain, spheres, groups, static, dy
     ``lever`` (G, K): bound on the distance (m) from joint i to group g's centre, 0 when joint
     i does not move the group."""
     T, K = P.shape
-    parent, R0, p0, axis = chain
-    _, gc, gr, gj = groups
-    dk, dR, dp, ds = dyn
-    origin, h, delta, V, gfix = grids
-    G = gr.shape[0]
-    Rb, pb, cw, gw, done, cand, pend = _work(K, spheres, groups, static, dyn, fixed, self_pairs)
-    Rc = np.empty((K, 3, 3))
-    pc = np.empty((K, 3))
-    gwc = np.empty((G, 3))
-    until = np.full(G, -1, dtype=np.int64)  # last substep (within the segment) certified
-    puntil = np.full(self_pairs.shape[0], -1, dtype=np.int64)
-    step_len = np.empty(G)
-    q = np.empty(K)
+    work, until, puntil, step_len, q, Rc, pc, gwc = _buffers(K, spheres, groups, static, dyn,
+                                                            fixed, self_pairs)
     n = substeps + 1
-    idx = 0
-    for t in range(T):
-        last = t == T - 1
-        for a in range(G):
-            until[a] = -1
-        for a in range(self_pairs.shape[0]):
-            puntil[a] = -1
-        if not last:
-            for g in range(G):
-                s = 0.0
-                for i in range(K):
-                    s += abs(P[t + 1, i] - P[t, i]) * lever[g, i]
-                step_len[g] = s / n + 1e-12
-        m_end = 1 if last else n
-        for m in range(m_end):
-            for i in range(K):
-                q[i] = P[t, i] if last else P[t, i] + (m / n) * (P[t + 1, i] - P[t, i])
-            need_full = False
-            computed = False
-            for g in range(G):
-                if until[g] >= m:
-                    continue
-                if not computed:
-                    chain_fk(q, parent, R0, p0, axis, Rc, pc)
-                    for gg in range(G):
-                        j = gj[gg]
-                        for a in range(3):
-                            gwc[gg, a] = (Rc[j, a, 0] * gc[gg, 0] + Rc[j, a, 1] * gc[gg, 1]
-                                          + Rc[j, a, 2] * gc[gg, 2] + pc[j, a])
-                    computed = True
-                d = _grid_lower_bound(origin, h, delta, V[0], gwc[g])
-                if gfix[g] >= 0:
-                    d = min(d, _grid_lower_bound(origin, h, delta, V[gfix[g]], gwc[g]))
-                for o in range(dk.shape[0]):
-                    d = min(d, signed_distance(dk[o], dR[o], dp[o], ds[o], gwc[g]))
-                d -= gr[g]
-                if d > 0.0 and not last:
-                    until[g] = m + int(d / step_len[g])
-                else:
-                    need_full = True
-            if not need_full:
-                for k in range(self_pairs.shape[0]):
-                    if puntil[k] >= m:
-                        continue
-                    a = self_pairs[k, 0]
-                    b = self_pairs[k, 1]
-                    if not computed:
-                        chain_fk(q, parent, R0, p0, axis, Rc, pc)
-                        for gg in range(G):
-                            j = gj[gg]
-                            for x in range(3):
-                                gwc[gg, x] = (Rc[j, x, 0] * gc[gg, 0]
-                                              + Rc[j, x, 1] * gc[gg, 1]
-                                              + Rc[j, x, 2] * gc[gg, 2] + pc[j, x])
-                        computed = True
-                    d = np.sqrt((gwc[a, 0] - gwc[b, 0]) ** 2 + (gwc[a, 1] - gwc[b, 1]) ** 2
-                                + (gwc[a, 2] - gwc[b, 2]) ** 2) - gr[a] - gr[b]
-                    if d > 0.0 and not last:
-                        puntil[k] = m + int(d / (step_len[a] + step_len[b]))
-                    else:
-                        need_full = True
-                        break
-            if need_full and config_collides(q, chain, spheres, groups, static, dyn, fixed,
-                                             fixed_csr, self_pairs, grids, gexact, rin, Rb, pb,
-                                             cw, gw, done, cand, pend):
-                return idx + m
-        idx += m_end
-    return -1
+    for t in range(T - 1):
+        m = _walk(P[t], P[t + 1], n, 0, n - 1, True, lever, chain, spheres, groups, static,
+                  dyn, fixed, fixed_csr, self_pairs, grids, gexact, rin, work, until, puntil,
+                  step_len, q, Rc, pc, gwc)
+        if m >= 0:
+            return t * n + m
+    m = _walk(P[T - 1], P[T - 1], 0, 0, 0, True, lever, chain, spheres, groups, static, dyn,
+              fixed, fixed_csr, self_pairs, grids, gexact, rin, work, until, puntil, step_len,
+              q, Rc, pc, gwc)
+    return (T - 1) * n if m >= 0 else -1
+
+
+@njit(cache=True)
+def motions_valid_dense(Q0, Q1, resolution, lever, chain, spheres, groups, static, dyn, fixed,
+                        fixed_csr, self_pairs, grids, gexact, rin):  # pragma: no cover
+    """Whether each straight motion Q0[i] → Q1[i] is free at the interior steps k / n,
+    n = ceil(length / resolution): the same configurations and answer as
+    :func:`validity.motions_valid`, visited in order with clearance certificates instead of in
+    bisection order. End points give certificates but are not checked."""
+    K = Q0.shape[1]
+    work, until, puntil, step_len, q, Rc, pc, gwc = _buffers(K, spheres, groups, static, dyn,
+                                                            fixed, self_pairs)
+    out = np.empty(Q0.shape[0], dtype=np.bool_)
+    for i in range(Q0.shape[0]):
+        d = 0.0
+        for a in range(K):
+            d += (Q1[i, a] - Q0[i, a]) ** 2
+        n = int(np.ceil(np.sqrt(d) / resolution))
+        if n <= 1:
+            out[i] = True
+            continue
+        hit = False  # the first levels of the bisection order catch most collisions early
+        for k in (n // 2, n // 4, (3 * n) // 4):
+            if 0 < k < n:
+                for a in range(K):
+                    q[a] = Q0[i, a] + (k / n) * (Q1[i, a] - Q0[i, a])
+                if config_collides(q, chain, spheres, groups, static, dyn, fixed, fixed_csr,
+                                   self_pairs, grids, gexact, rin, *work):
+                    hit = True
+                    break
+        if hit:
+            out[i] = False
+            continue
+        out[i] = _walk(Q0[i], Q1[i], n, 0, n - 1, False, lever, chain, spheres, groups,
+                       static, dyn, fixed, fixed_csr, self_pairs, grids, gexact, rin, work,
+                       until, puntil, step_len, q, Rc, pc, gwc) < 0
+    return out
 
 
 def lever_arms(parent: np.ndarray, p_parent_joint: np.ndarray, group_joint: np.ndarray,

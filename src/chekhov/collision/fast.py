@@ -249,7 +249,8 @@ class FastChecker:
         """Whether each straight motion Q0[i] → Q1[i] is free at every ``resolution`` (rad)
         step of joint-space distance; end points are not checked."""
         Q0, Q1 = self._as_batch(Q0), self._as_batch(Q1)
-        return validity.motions_valid(Q0, Q1, float(resolution), *self._args())
+        return dense_path.motions_valid_dense(Q0, Q1, float(resolution), self._levers(),
+                                              *self._args())
 
     def motion_valid(self, q0: Array, q1: Array, resolution: float = 0.02) -> bool:
         """Whether the straight motion q0 → q1 and both end points are collision-free."""
@@ -266,11 +267,15 @@ class FastChecker:
         colliding, or None: the same answer as ``valid(densify(path, substeps))``, computed
         with clearance certificates that skip most configurations (see ``dense_path.py``)."""
         P = self._as_batch(path)
+        i = dense_path.first_dense_collision(P, int(substeps), self._levers(), *self._args())
+        return None if i < 0 else int(i)
+
+    def _levers(self) -> Array:
+        """(G, K) lever-arm bounds of the groups (``dense_path.lever_arms``), built once."""
         if self._lever is None:
             parent, _, p0, _ = self._chain
             self._lever = dense_path.lever_arms(parent, p0, self._groups[3], self._groups[1])
-        i = dense_path.first_dense_collision(P, int(substeps), self._lever, *self._args())
-        return None if i < 0 else int(i)
+        return self._lever
 
     def dense_path_valid(self, path: Array, substeps: int = 100) -> bool:
         """Whether every waypoint of path (T, K) and ``substeps`` interpolated configurations
