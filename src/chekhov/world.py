@@ -34,7 +34,9 @@ class World:
 
     @cached_property
     def fast(self) -> FastChecker:
-        return FastChecker(self.robot, self.scene)
+        fast = FastChecker(self.robot, self.scene)
+        fast.warm_up()  # compile (or load) its kernels before anyone times a query
+        return fast
 
     @cached_property
     def exact(self) -> ExactChecker:

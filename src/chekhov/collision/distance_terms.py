@@ -382,6 +382,9 @@ class TrajectoryDistances:
                                    + self._fbound[idx])
         self._clusters = (centre, radius, start, members)
         self._env_version = -1
+        q = 0.5 * (fast.robot.lower + fast.robot.upper)  # compile the kernels now, not in a
+        self.segments(np.vstack([q, q + 0.05]), 0.05, 1)  # planner's time limit
+        self.waypoints(q[None], 0.05, 1)
 
     def _env(self) -> tuple[tuple, Array]:
         if self._env_version != self.fast.obstacles_version:

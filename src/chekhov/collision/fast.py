@@ -282,6 +282,15 @@ class FastChecker:
         per segment are free (the paper's check, on this checker)."""
         return self.first_dense_collision(path, substeps) is None
 
+    def warm_up(self) -> None:
+        """Compile (or load from numba's cache) the validity, motion and path kernels now, so
+        that no planner pays for compilation inside its time limit."""
+        q0 = 0.5 * (self.robot.lower + self.robot.upper)
+        q1 = q0 + 0.1
+        self.valid(np.vstack([q0, q1]))
+        self.motions_valid(q0[None], q1[None])
+        self.first_dense_collision(np.vstack([q0, q1]), 2)
+
     def min_distance(self, Q: Array) -> Array:
         """Smallest signed distance (m) between the spheres and anything, per configuration."""
         return kernels.min_distance_batch(self._as_batch(Q), *self._exact_args())
