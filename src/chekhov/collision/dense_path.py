@@ -40,6 +40,17 @@ def _grid_lower_bound(origin, h, delta, values, c):  # pragma: no cover - compil
 
 
 @njit(cache=True)
+def _group_centres(q, chain, gc, gj, Rc, pc, gwc):  # pragma: no cover - compiled
+    """World centre gwc[g] of each group's bounding sphere at q (runs the chain FK)."""
+    chain_fk(q, chain[0], chain[1], chain[2], chain[3], Rc, pc)
+    for g in range(gc.shape[0]):
+        j = gj[g]
+        for a in range(3):
+            gwc[g, a] = (Rc[j, a, 0] * gc[g, 0] + Rc[j, a, 1] * gc[g, 1]
+                         + Rc[j, a, 2] * gc[g, 2] + pc[j, a])
+
+
+@njit(cache=True)
 def _walk(P0, P1, n, m_first, m_last, check_ends, lever, chain, spheres, groups, static, dyn,
           fixed, fixed_csr, self_pairs, grids, gexact, rin, work, until, puntil, step_len, q,
           Rc, pc, gwc):  # pragma: no cover - compiled
@@ -47,7 +58,6 @@ def _walk(P0, P1, n, m_first, m_last, check_ends, lever, chain, spheres, groups,
     the fast checker calls colliding, or -1. Clearance certificates skip the rest (see the
     module docstring); with ``check_ends`` False, m = 0 and m = n only give certificates."""
     K = P0.shape[0]
-    parent, R0, p0, axis = chain
     _, gc, gr, gj = groups
     dk, dR, dp, ds = dyn
     origin, h, delta, V, gfix = grids
@@ -70,12 +80,7 @@ def _walk(P0, P1, n, m_first, m_last, check_ends, lever, chain, spheres, groups,
             if until[g] >= m:
                 continue
             if chain_needed:
-                chain_fk(q, parent, R0, p0, axis, Rc, pc)
-                for gg in range(G):
-                    j = gj[gg]
-                    for a in range(3):
-                        gwc[gg, a] = (Rc[j, a, 0] * gc[gg, 0] + Rc[j, a, 1] * gc[gg, 1]
-                                      + Rc[j, a, 2] * gc[gg, 2] + pc[j, a])
+                _group_centres(q, chain, gc, gj, Rc, pc, gwc)
                 chain_needed = False
             d = _grid_lower_bound(origin, h, delta, V[0], gwc[g])
             if gfix[g] >= 0:
@@ -93,12 +98,7 @@ def _walk(P0, P1, n, m_first, m_last, check_ends, lever, chain, spheres, groups,
             a = self_pairs[k, 0]
             b = self_pairs[k, 1]
             if chain_needed:
-                chain_fk(q, parent, R0, p0, axis, Rc, pc)
-                for gg in range(G):
-                    j = gj[gg]
-                    for x in range(3):
-                        gwc[gg, x] = (Rc[j, x, 0] * gc[gg, 0] + Rc[j, x, 1] * gc[gg, 1]
-                                      + Rc[j, x, 2] * gc[gg, 2] + pc[j, x])
+                _group_centres(q, chain, gc, gj, Rc, pc, gwc)
                 chain_needed = False
             d = np.sqrt((gwc[a, 0] - gwc[b, 0]) ** 2 + (gwc[a, 1] - gwc[b, 1]) ** 2
                         + (gwc[a, 2] - gwc[b, 2]) ** 2) - gr[a] - gr[b]

@@ -26,7 +26,6 @@ from chekhov.scene.model import Scene, Shape
 Array = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 _FIXED_GRID_CACHE: dict[tuple, list] = {}
-_AXES = {"RX": (1.0, 0.0, 0.0), "RY": (0.0, 1.0, 0.0), "RZ": (0.0, 0.0, 1.0)}
 
 
 @dataclass(frozen=True)
@@ -60,18 +59,7 @@ def chain_arrays(robot: Robot) -> tuple[NDArray[np.int64], Array, Array, Array]:
     parent = np.array([m.parents[k] - 1 for k in range(1, K + 1)], dtype=np.int64)
     R0 = np.array([m.jointPlacements[k].rotation for k in range(1, K + 1)])
     p0 = np.array([m.jointPlacements[k].translation for k in range(1, K + 1)])
-    axes = []
-    for k in range(1, K + 1):
-        j = m.joints[k]
-        name = j.shortname()
-        if name.startswith("JointModelR") and name[-2:] in _AXES:
-            axes.append(_AXES[name[-2:]])
-        elif name == "JointModelRevoluteUnaligned":
-            axes.append(tuple(j.extract().axis))
-        else:
-            raise RobotError(f"fast checker: joint '{m.names[k]}' is {name}; only revolute "
-                             "joints are supported")
-    return parent, R0, p0, np.array(axes, dtype=float)
+    return parent, R0, p0, robot.compute_joint_axes()
 
 
 class FastChecker:

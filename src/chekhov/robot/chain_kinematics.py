@@ -21,7 +21,6 @@ from chekhov.errors import RobotError
 from chekhov.robot.robot import Robot
 
 Array = NDArray[np.float64]
-_AXES = {"RX": (1.0, 0.0, 0.0), "RY": (0.0, 1.0, 0.0), "RZ": (0.0, 0.0, 1.0)}
 
 
 @dataclass(frozen=True, eq=False)
@@ -50,28 +49,18 @@ class ChainKinematics:
         a non-revolute joint, or an end effector not on the last joint."""
         m = robot.model
         K = robot.dof
-        axes = []
         for k in range(1, K + 1):
             if m.parents[k] != k - 1:
                 raise RobotError(f"robot '{robot.name}': chain kinematics need a serial "
-                                   f"chain; joint '{m.names[k]}' has parent {m.parents[k]}")
-            j = m.joints[k]
-            name = j.shortname()
-            if name.startswith("JointModelR") and name[-2:] in _AXES:
-                axes.append(_AXES[name[-2:]])
-            elif name == "JointModelRevoluteUnaligned":
-                axes.append(tuple(j.extract().axis))
-            else:
-                raise RobotError(f"robot '{robot.name}': joint '{m.names[k]}' is {name}; "
-                                   "chain kinematics support revolute joints only")
+                                 f"chain; joint '{m.names[k]}' has parent {m.parents[k]}")
         frame = m.frames[robot.ee_frame_id]
         if frame.parentJoint != K:
             raise RobotError(f"robot '{robot.name}': end-effector frame is on joint "
-                               f"{frame.parentJoint}, expected the last joint {K}")
+                             f"{frame.parentJoint}, expected the last joint {K}")
         return cls(
             R_parent_joint=np.array([m.jointPlacements[k].rotation for k in range(1, K + 1)]),
             p_parent_joint=np.array([m.jointPlacements[k].translation for k in range(1, K + 1)]),
-            axis=np.array(axes, dtype=float),
+            axis=robot.compute_joint_axes(),
             R_last_ee=np.array(frame.placement.rotation), p_last_ee=np.array(
                 frame.placement.translation),
             lower=robot.lower.astype(float).copy(), upper=robot.upper.astype(float).copy())

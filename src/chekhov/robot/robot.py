@@ -15,6 +15,7 @@ from chekhov.robot.description import RobotDescription, example_robot_data_dir
 from chekhov.transforms import make_transform, rpy_to_matrix
 
 Array = NDArray[np.float64]
+_AXES = {"RX": (1.0, 0.0, 0.0), "RY": (0.0, 1.0, 0.0), "RZ": (0.0, 0.0, 1.0)}
 
 
 class Robot:
@@ -153,6 +154,23 @@ class Robot:
         """T_world_joint of every group joint at q, shape (K, 4, 4)."""
         pin.forwardKinematics(self.model, self.data, np.asarray(q, dtype=float))
         return np.stack([self.data.oMi[j].homogeneous for j in range(1, self.model.njoints)])
+
+    def compute_joint_axes(self) -> Array:
+        """Rotation axis (K, 3) of each group joint in its own frame (unit vectors); a clear
+        error for a joint that is not revolute."""
+        m = self.model
+        axes = []
+        for k in range(1, self.dof + 1):
+            j = m.joints[k]
+            name = j.shortname()
+            if name.startswith("JointModelR") and name[-2:] in _AXES:
+                axes.append(_AXES[name[-2:]])
+            elif name == "JointModelRevoluteUnaligned":
+                axes.append(tuple(j.extract().axis))
+            else:
+                raise RobotError(f"robot '{self.name}': joint '{m.names[k]}' is {name}; only "
+                                 "revolute joints are supported by the compiled kinematics")
+        return np.array(axes, dtype=float)
 
     def _frame_id(self, frame: str | int | None) -> int:
         if frame is None:
