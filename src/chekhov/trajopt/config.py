@@ -29,6 +29,8 @@ class TrajOptConfig:
         initial_penalty, penalty_increase, max_penalty_increases: the l1 merit coefficient μ,
             raised by this factor while constraints are violated.
         initial_trust_rad, trust_expand, trust_shrink, min_trust_rad: box trust region (rad).
+            The first box is 0.2 rad (TrajOpt: 0.1): on 0.16 rad-resampled seeds it needs
+            fewer steps for the same paths (shelf_boxes free seeds: median 10.2 → 8.9 ms).
         improve_ratio_threshold: accept a step when true / model improvement exceeds it.
         min_approx_improve, min_approx_improve_frac: convergence on the model improvement
             (absolute, and relative to the merit).
@@ -69,7 +71,7 @@ class TrajOptConfig:
     initial_penalty: float = 10.0
     penalty_increase: float = 10.0
     max_penalty_increases: int = 4
-    initial_trust_rad: float = 0.1
+    initial_trust_rad: float = 0.2
     trust_expand: float = 1.5
     trust_shrink: float = 0.1
     min_trust_rad: float = 1e-4
