@@ -21,15 +21,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
-from scipy.cluster.vq import kmeans2
 
 from chekhov.collision.kernels import (
-    BOX,
-    CYLINDER,
     chain_fk,
     signed_distance,
     signed_distance_normal,
 )
+from chekhov.collision.primitives import bounding_radius
 
 if TYPE_CHECKING:
     from chekhov.collision.fast import FastChecker
@@ -336,16 +334,6 @@ def segment_terms(Q, margin, C, chain, spheres, groups, env, ebound, fixed, fbou
                                 ca[i], grad1[t, k])
 
 
-def bounding_radius(kind: NDArray[np.int64], size: Array) -> Array:
-    """Radius (m) of a sphere about each primitive's origin that contains it."""
-    r = size[:, 0].copy()
-    box = kind == BOX
-    r[box] = np.linalg.norm(size[box], axis=1)
-    cyl = kind == CYLINDER
-    r[cyl] = np.hypot(size[cyl, 0], size[cyl, 1])
-    return r
-
-
 class TrajectoryDistances:
     """Signed-distance terms of whole trajectories against a :class:`FastChecker`'s world.
 
@@ -354,33 +342,16 @@ class TrajectoryDistances:
     skips all of its primitives with one test.
     """
 
-    def __init__(self, fast: FastChecker, clusters: int = 12) -> None:
+    def __init__(self, fast: FastChecker) -> None:
         self.fast = fast
-        chain, spheres, groups, _, fixed, fixed_pairs, self_pairs = fast._exact_args()
+        chain, spheres, groups, _, fixed, _, self_pairs = fast._exact_args()
         self._chain, self._spheres, self._groups = chain, spheres, groups
         self._fixed, self._self_pairs = fixed, self_pairs
-        fk, _, fp, fs = fixed
+        fk, _, _, fs = fixed
         self._fbound = bounding_radius(fk, fs)
-        G = len(groups[2])
-        allowed = np.zeros((G, max(len(fk), 1)), dtype=np.bool_)
-        allowed[fixed_pairs[:, 0], fixed_pairs[:, 1]] = True
-        self._allowed = allowed
-        L = min(clusters, len(fk))
-        if L > 0:
-            _, label = kmeans2(fp, L, seed=0, minit="++")
-        else:
-            label = np.zeros(0, dtype=np.int64)
-        members = np.argsort(label, kind="stable").astype(np.int64)
-        start = np.searchsorted(label[members], np.arange(L + 1)).astype(np.int64)
-        centre = np.zeros((L, 3))
-        radius = np.zeros(L)
-        for c in range(L):
-            idx = members[start[c]:start[c + 1]]
-            if len(idx):
-                centre[c] = fp[idx].mean(axis=0)
-                radius[c] = np.max(np.linalg.norm(fp[idx] - centre[c], axis=1)
-                                   + self._fbound[idx])
-        self._clusters = (centre, radius, start, members)
+        # the fast checker's clusters of fixed robot parts and its (group, part) pairs
+        self._allowed, *clusters = fast._fixed_csr[2:]
+        self._clusters = tuple(clusters)
         self._env_version = -1
         q = 0.5 * (fast.robot.lower + fast.robot.upper)  # compile the kernels now, not in a
         self.segments(np.vstack([q, q + 0.05]), 0.05, 1)  # planner's time limit

@@ -17,7 +17,13 @@ from numpy.typing import NDArray
 
 from chekhov.collision import dense_path, kernels, validity
 from chekhov.collision.grid import build_grid
-from chekhov.collision.primitives import Primitive, geometry_primitives, pack, shape_primitive
+from chekhov.collision.primitives import (
+    Primitive,
+    cluster_primitives,
+    geometry_primitives,
+    pack,
+    shape_primitive,
+)
 from chekhov.errors import RobotError
 from chekhov.robot.robot import Robot
 from chekhov.robot.spheres import SphereModel, build_sphere_model
@@ -115,7 +121,7 @@ class FastChecker:
         G = len(gr)
         fstart = np.searchsorted(self._fixed_pairs[:, 0], np.arange(G + 1)).astype(np.int64)
         self._fixed_csr = (fstart, self._fixed_pairs[:, 1].copy(),
-                           *_fixed_clusters(self._fixed, self._fixed_pairs, G))
+                           *cluster_primitives(self._fixed, self._fixed_pairs, G))
         self._self_pairs = np.array(self_pairs, dtype=np.int64).reshape(-1, 2)
         self._lever: Array | None = None  # (G, K) for dense path checks, on first use
         self._obstacles: dict[str, Primitive] = {}
@@ -337,36 +343,6 @@ def exact_geometry(robot: Robot, geoms: list[int], sp: SphereModel
             d = kernels.signed_distance(kind[i], R[i], p[i], size[i], sp.centers[s])
             rin[s] = max(0.0, -d - 1e-9)
     return (kind, R, p, size, pad), rin
-
-
-def _fixed_clusters(fixed: tuple, fixed_pairs: NDArray[np.int64], n_groups: int,
-                    clusters: int = 16) -> tuple:
-    """Fixed robot parts grouped into spatial clusters with bounding spheres, so that a group
-    far from the torso skips all of its primitives with a few tests: (allowed (G, F) bool —
-    the group is checked against the primitive —, centre (L, 3), radius (L,), start (L+1,),
-    members (F,))."""
-    from scipy.cluster.vq import kmeans2
-
-    from chekhov.collision.distance_terms import bounding_radius
-
-    kind, _, pos, size = fixed
-    F = len(kind)
-    allowed = np.zeros((n_groups, max(F, 1)), dtype=np.bool_)
-    allowed[fixed_pairs[:, 0], fixed_pairs[:, 1]] = True
-    L = min(clusters, F)
-    label = (kmeans2(pos, L, seed=0, minit="++")[1] if L > 0
-             else np.zeros(0, dtype=np.int64))
-    members = np.argsort(label, kind="stable").astype(np.int64)
-    start = np.searchsorted(label[members], np.arange(L + 1)).astype(np.int64)
-    bound = bounding_radius(kind, size) if F else np.zeros(0)
-    centre = np.zeros((L, 3))
-    radius = np.zeros(L)
-    for c in range(L):
-        idx = members[start[c]:start[c + 1]]
-        if len(idx):
-            centre[c] = pos[idx].mean(axis=0)
-            radius[c] = float(np.max(np.linalg.norm(pos[idx] - centre[c], axis=1) + bound[idx]))
-    return allowed, centre, radius, start, members
 
 
 def pinocchio_joint_placements(robot: Robot, q: Array) -> list[pin.SE3]:

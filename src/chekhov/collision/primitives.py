@@ -81,3 +81,39 @@ def pack(prims: list[Primitive]) -> tuple[NDArray[np.int64], Array, Array, Array
     pos = np.array([p.T[:3, 3] for p in prims], dtype=float).reshape(M, 3)
     size = np.array([p.size for p in prims], dtype=float).reshape(M, 3)
     return kind, R, pos, size
+
+
+def bounding_radius(kind: NDArray[np.int64], size: Array) -> Array:
+    """Radius (m) of a sphere about each primitive's origin that contains it."""
+    r = size[:, 0].copy()
+    box = kind == BOX
+    r[box] = np.linalg.norm(size[box], axis=1)
+    cyl = kind == CYLINDER
+    r[cyl] = np.hypot(size[cyl, 0], size[cyl, 1])
+    return r
+
+
+def cluster_primitives(fixed: tuple, fixed_pairs: NDArray[np.int64], n_groups: int,
+                       clusters: int = 16) -> tuple:
+    """Fixed robot parts grouped into spatial clusters with bounding spheres, so that a group
+    far from the torso skips all of its primitives with a few tests: (allowed (G, F) bool —
+    the group is checked against the primitive —, centre (L, 3), radius (L,), start (L+1,),
+    members (F,))."""
+    kind, _, pos, size = fixed
+    F = len(kind)
+    allowed = np.zeros((n_groups, max(F, 1)), dtype=np.bool_)
+    allowed[fixed_pairs[:, 0], fixed_pairs[:, 1]] = True
+    L = min(clusters, F)
+    label = (kmeans2(pos, L, seed=0, minit="++")[1] if L > 0
+             else np.zeros(0, dtype=np.int64))
+    members = np.argsort(label, kind="stable").astype(np.int64)
+    start = np.searchsorted(label[members], np.arange(L + 1)).astype(np.int64)
+    bound = bounding_radius(kind, size) if F else np.zeros(0)
+    centre = np.zeros((L, 3))
+    radius = np.zeros(L)
+    for c in range(L):
+        idx = members[start[c]:start[c + 1]]
+        if len(idx):
+            centre[c] = pos[idx].mean(axis=0)
+            radius[c] = float(np.max(np.linalg.norm(pos[idx] - centre[c], axis=1) + bound[idx]))
+    return allowed, centre, radius, start, members
