@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from chekhov.collision.kernels import chain_fk, signed_distance
+from chekhov.collision.kernels import chain_fk, grid_cell, signed_distance
 from chekhov.collision.validity import _work, config_collides
 
 
@@ -26,17 +26,8 @@ from chekhov.collision.validity import _work, config_collides
 def _grid_lower_bound(origin, h, delta, values, c):  # pragma: no cover - compiled
     """A lower bound on the distance (m) from point c to the grid's primitives; -inf outside
     the grid. See :func:`kernels.grid_classify` for the bound."""
-    fi = (c[0] - origin[0]) / h
-    fj = (c[1] - origin[1]) / h
-    fk = (c[2] - origin[2]) / h
-    i = int(np.floor(fi + 0.5))
-    j = int(np.floor(fj + 0.5))
-    k = int(np.floor(fk + 0.5))
-    if i < 0 or j < 0 or k < 0 or i >= values.shape[0] or j >= values.shape[1] \
-            or k >= values.shape[2]:
-        return -np.inf
-    e = h * np.sqrt((fi - i) ** 2 + (fj - j) ** 2 + (fk - k) ** 2) + 1e-9
-    return values[i, j, k] * delta - e
+    q, e = grid_cell(origin, h, values, c)
+    return -np.inf if q < 0 else q * delta - e
 
 
 @njit(cache=True)

@@ -142,14 +142,9 @@ def signed_distance_normal(kind, R, p, size, x, n_out):  # pragma: no cover - co
 
 
 @njit(cache=True)
-def grid_classify(origin, h, delta, values, c, r):  # pragma: no cover - compiled
-    """What a distance grid (see ``grid.py``) proves about sphere (c, r).
-
-    Returns 1 when the sphere touches nothing in the grid, -1 when it certainly overlaps a
-    primitive of the grid, 0 when undecided (near a surface or outside the grid). Stored value
-    q at the nearest voxel centre v bounds the distance: q·delta ≤ d(v) < (q + 1)·delta, and
-    |d(c) - d(v)| ≤ |c - v| (the distance field is 1-Lipschitz).
-    """
+def grid_cell(origin, h, values, c):  # pragma: no cover - compiled
+    """(stored value q, distance e from c to the nearest voxel centre) of a distance grid at
+    point c; q = -1 outside the grid."""
     fi = (c[0] - origin[0]) / h
     fj = (c[1] - origin[1]) / h
     fk = (c[2] - origin[2]) / h
@@ -158,9 +153,22 @@ def grid_classify(origin, h, delta, values, c, r):  # pragma: no cover - compile
     k = int(np.floor(fk + 0.5))
     if i < 0 or j < 0 or k < 0 or i >= values.shape[0] or j >= values.shape[1] \
             or k >= values.shape[2]:
+        return -1, 0.0
+    return int(values[i, j, k]), h * np.sqrt((fi - i) ** 2 + (fj - j) ** 2 + (fk - k) ** 2) + 1e-9
+
+
+@njit(cache=True)
+def grid_classify(origin, h, delta, values, c, r):  # pragma: no cover - compiled
+    """What a distance grid (see ``grid.py``) proves about sphere (c, r).
+
+    Returns 1 when the sphere touches nothing in the grid, -1 when it certainly overlaps a
+    primitive of the grid, 0 when undecided (near a surface or outside the grid). Stored value
+    q at the nearest voxel centre v bounds the distance: q·delta ≤ d(v) < (q + 1)·delta, and
+    |d(c) - d(v)| ≤ |c - v| (the distance field is 1-Lipschitz).
+    """
+    q, e = grid_cell(origin, h, values, c)
+    if q < 0:
         return 0
-    e = h * np.sqrt((fi - i) ** 2 + (fj - j) ** 2 + (fk - k) ** 2) + 1e-9
-    q = values[i, j, k]
     if q * delta - e >= r:
         return 1
     if q < 255 and (q + 1) * delta + e < r:
