@@ -76,6 +76,13 @@ def _centres(q, chain, sc, sj, gc, gj, Rb, pb, cw, gw):  # pragma: no cover - co
 
 
 @njit(cache=True)
+def _candidates(cap):  # pragma: no cover - compiled
+    """Empty candidate arrays for ``cap`` terms: distance, sphere, other, kind, α, normal."""
+    return (np.empty(cap), np.empty(cap, dtype=np.int64), np.empty(cap, dtype=np.int64),
+            np.empty(cap, dtype=np.int64), np.empty(cap), np.empty((cap, 3)))
+
+
+@njit(cache=True)
 def _select(cd, n, C, order):  # pragma: no cover - compiled
     """Indices of the min(C, n) smallest cd[:n] into order; returns how many."""
     m = min(C, n)
@@ -257,13 +264,8 @@ def waypoint_terms(Q, margin, C, with_obstacles, chain, spheres, groups, env, eb
     aw = np.empty((K, 3))
     cw = np.empty((S, 3))
     gw = np.empty((G, 3))
-    cap = G * (env[0].shape[0] + fixed[0].shape[0]) + self_pairs.shape[0] + 1
-    cd = np.empty(cap)
-    cs = np.empty(cap, dtype=np.int64)
-    co = np.empty(cap, dtype=np.int64)
-    ck = np.empty(cap, dtype=np.int64)
-    ca = np.empty(cap)
-    cn = np.empty((cap, 3))
+    cd, cs, co, ck, ca, cn = _candidates(G * (env[0].shape[0] + fixed[0].shape[0])
+                                         + self_pairs.shape[0] + 1)
     order = np.empty(C, dtype=np.int64)
     for t in range(T):
         _centres(Q[t], chain, sc, sj, gc, gj, Rb, pb, cw, gw)
@@ -306,13 +308,7 @@ def segment_terms(Q, margin, C, chain, spheres, groups, env, ebound, fixed, fbou
     for t in range(T):
         _centres(Q[t], chain, sc, sj, gc, gj, Rb[t], pb[t], cw[t], gw[t])
         _world_axes(Rb[t], axis, aw[t])
-    cap = G * (env[0].shape[0] + fixed[0].shape[0]) + 1
-    cd = np.empty(cap)
-    cs = np.empty(cap, dtype=np.int64)
-    co = np.empty(cap, dtype=np.int64)
-    ck = np.empty(cap, dtype=np.int64)
-    ca = np.empty(cap)
-    cn = np.empty((cap, 3))
+    cd, cs, co, ck, ca, cn = _candidates(G * (env[0].shape[0] + fixed[0].shape[0]) + 1)
     order = np.empty(C, dtype=np.int64)
     for t in range(T - 1):
         n = _obstacle_candidates(t, margin, groups, sr, env, ebound, fixed, fbound, allowed,

@@ -213,6 +213,21 @@ def min_distance_batch(Q, chain, spheres, groups, env, fixed, fixed_pairs, self_
 
 
 @njit(cache=True)
+def _primitive_contacts(kind, R, p, size, o, src, a, b, cw, sr, margin, nrm, out, n
+                        ):  # pragma: no cover - compiled
+    """Append spheres a..b-1 closer than margin to primitive o (source ``src``) to the contact
+    arrays ``out``; returns the new count."""
+    s_out, o_out, k_out, d_out, n_out = out
+    for s in range(a, b):
+        d = signed_distance_normal(kind, R, p, size, cw[s], nrm) - sr[s]
+        if d < margin:
+            s_out[n], o_out[n], k_out[n], d_out[n] = s, o, src, d
+            n_out[n] = nrm
+            n += 1
+    return n
+
+
+@njit(cache=True)
 def sphere_contacts(q, margin, chain, spheres, groups, env, fixed, fixed_pairs, self_pairs
                     ):  # pragma: no cover - compiled
     """Every sphere within ``margin`` of an obstacle or of another sphere, at q.
@@ -242,22 +257,15 @@ def sphere_contacts(q, margin, chain, spheres, groups, env, fixed, fixed_pairs, 
     n_out = np.empty((cap, 3))
     nrm = np.empty(3)
     n = 0
+    out = (s_out, o_out, k_out, d_out, n_out)
     for o in range(ek.shape[0]):
-        for s in range(S):
-            d = signed_distance_normal(ek[o], eR[o], ep[o], es[o], cw[s], nrm) - sr[s]
-            if d < margin:
-                s_out[n], o_out[n], k_out[n], d_out[n] = s, o, 0, d
-                n_out[n] = nrm
-                n += 1
+        n = _primitive_contacts(ek[o], eR[o], ep[o], es[o], o, 0, 0, S, cw, sr, margin, nrm,
+                                out, n)
     for i in range(fixed_pairs.shape[0]):
         g = fixed_pairs[i, 0]
         o = fixed_pairs[i, 1]
-        for s in range(gstart[g], gstart[g + 1]):
-            d = signed_distance_normal(fk[o], fR[o], fp[o], fs[o], cw[s], nrm) - sr[s]
-            if d < margin:
-                s_out[n], o_out[n], k_out[n], d_out[n] = s, o, 1, d
-                n_out[n] = nrm
-                n += 1
+        n = _primitive_contacts(fk[o], fR[o], fp[o], fs[o], o, 1, gstart[g], gstart[g + 1], cw,
+                                sr, margin, nrm, out, n)
     for i in range(self_pairs.shape[0]):
         a = self_pairs[i, 0]
         b = self_pairs[i, 1]
