@@ -2,13 +2,18 @@
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from itertools import pairwise
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
+if TYPE_CHECKING:
+    from chekhov.world import World
+
+from chekhov.errors import IKError
 from chekhov.robot.goal import Goal
 
 Array = NDArray[np.float64]
@@ -73,3 +78,29 @@ def resample_path(path: Array, max_step: float = 0.16) -> Array:
         for i in range(1, n + 1):
             out.append(a + (b - a) * (i / n))
     return np.array(out)
+
+
+def goal_configurations(world: World, goal: Goal, n_ik: int, rng: np.random.Generator
+                        ) -> Array:
+    """Goal configurations (n, K): ``goal.q``, or up to ``n_ik`` collision-free (fast checker)
+    IK solutions of ``goal.T_world_ee``. Raises :class:`IKError` when there is none."""
+    if goal.q is not None:
+        return world.robot.check_configuration(goal.q, "goal configuration")[None, :]
+    assert goal.T_world_ee is not None
+    return world.solve_ik(goal.T_world_ee, n_solutions=n_ik, rng=rng)
+
+
+def solve_goal_ik(world: World, goal: Goal, n_ik: int, rng: np.random.Generator, t0: float,
+                  timing: dict[str, float], info: dict[str, object]) -> Array | None:
+    """:func:`goal_configurations` for a sampling planner's query started at ``t0``: records
+    ``timing["ik"]`` (s) and ``info["ik_solutions"]`` (or ``info["error"]``); None when the
+    goal has no IK solution (the planner then answers "no_ik")."""
+    try:
+        goals = goal_configurations(world, goal, n_ik, rng)
+    except IKError as e:
+        timing["ik"] = time.perf_counter() - t0
+        info["error"] = str(e)
+        return None
+    timing["ik"] = time.perf_counter() - t0
+    info["ik_solutions"] = len(goals)
+    return goals

@@ -39,8 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from chekhov.errors import IKError
-from chekhov.planners.base import PlanResult
+from chekhov.planners.base import PlanResult, solve_goal_ik
 from chekhov.robot.goal import Goal
 from chekhov.world import World
 
@@ -81,16 +80,6 @@ class LazyPRMConfig:
     n_ik: int = 4
 
 
-def goal_configurations(world: World, goal: Goal, n_ik: int, rng: np.random.Generator
-                        ) -> Array:
-    """Goal configurations (n, K): ``goal.q``, or up to ``n_ik`` collision-free (fast checker)
-    IK solutions of ``goal.T_world_ee``. Raises :class:`IKError` when there is none."""
-    if goal.q is not None:
-        return world.robot.check_configuration(goal.q, "goal configuration")[None, :]
-    assert goal.T_world_ee is not None
-    return world.solve_ik(goal.T_world_ee, n_solutions=n_ik, rng=rng)
-
-
 class LazyPRM:
     """LazyPRM planner (see the module docstring) for one world.
 
@@ -127,14 +116,9 @@ class LazyPRM:
             return PlanResult(path is not None, path, status, time.perf_counter() - t0,
                               timing, info=info)
 
-        try:
-            goals = goal_configurations(self.world, goal, cfg.n_ik, self.rng)
-        except IKError as e:
-            timing["ik"] = time.perf_counter() - t0
-            info["error"] = str(e)
+        goals = solve_goal_ik(self.world, goal, cfg.n_ik, self.rng, t0, timing, info)
+        if goals is None:
             return done("no_ik")
-        timing["ik"] = time.perf_counter() - t0
-        info["ik_solutions"] = len(goals)
         if not (robot.within_limits(q_start)[0] and self.node_valid(q_start[None])[0]):
             return done("invalid_start")
         t = time.perf_counter()
@@ -362,4 +346,4 @@ def _check_edges(X: Array, edges: IntArray, pe: IntArray, edge_valid: EdgeValid,
     return not bool(ok.all())
 
 
-__all__ = ["LazyPRM", "LazyPRMConfig", "connect", "goal_configurations", "lazy_shortest_path"]
+__all__ = ["LazyPRM", "LazyPRMConfig", "connect", "lazy_shortest_path"]

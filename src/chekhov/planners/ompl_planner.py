@@ -39,9 +39,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from chekhov.errors import ChekhovError, IKError
-from chekhov.planners.base import PlanResult
-from chekhov.planners.lazy_prm import goal_configurations
+from chekhov.errors import ChekhovError
+from chekhov.planners.base import PlanResult, solve_goal_ik
 from chekhov.robot.goal import Goal
 from chekhov.world import World
 
@@ -175,14 +174,9 @@ class OmplPlanner:
             return PlanResult(path is not None, path, status, time.perf_counter() - t0,
                               timing, info=info)
 
-        try:
-            goals = goal_configurations(self.world, goal, self.n_ik, self.rng)
-        except IKError as e:
-            timing["ik"] = time.perf_counter() - t0
-            info["error"] = str(e)
+        goals = solve_goal_ik(self.world, goal, self.n_ik, self.rng, t0, timing, info)
+        if goals is None:
             return done("no_ik")
-        timing["ik"] = time.perf_counter() - t0
-        info["ik_solutions"] = len(goals)
         if not (robot.within_limits(q_start)[0] and self.world.fast.is_valid(q_start)):
             return done("invalid_start")
         t = time.perf_counter()
