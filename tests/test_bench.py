@@ -198,3 +198,31 @@ def test_ray_gives_the_same_results_as_local_processes(tmp):
                                                                     r["status_text"])
                                   for r in d.rows()}
     assert outcomes["ray"] == outcomes["local"]
+
+
+def test_seed_planner_run_is_shared_with_its_trajopt_run(tmp):
+    from chekhov.bench.runner import share_seed_runs
+    from chekhov.bench.task import RunTask
+
+    q, T = np.zeros(7), np.eye(4)
+    tasks = [RunTask(SCENE, p, i, q, T, 1.0, 0) for i in range(2)
+             for p in ("RRTConnect", "RRTConnect+TrajOpt", "TrajOpt")]
+    tasks.append(RunTask(SCENE, "RRT", 0, q, T, 1.0, 0))      # no RRT+TrajOpt: runs alone
+    shared = share_seed_runs(tasks)
+    assert [(t.planner, t.case_index, t.records_seed_run) for t in shared] == [
+        ("RRTConnect+TrajOpt", 0, True), ("TrajOpt", 0, False),
+        ("RRTConnect+TrajOpt", 1, True), ("TrajOpt", 1, False), ("RRT", 0, False)]
+
+    path = tmp / "shared.db"
+    out = run_benchmark(config(tmp, n=2, planners=("RRTConnect", "RRTConnect+TrajOpt")), path,
+                        progress=False)
+    assert (out.ran, out.planned) == (4, 4)
+    with BenchDatabase(path) as d:
+        rows = {(r["planner"], r["case_index"]): r for r in d.rows(paths=True)}
+    for i in range(2):
+        alone, seeded = rows[("RRTConnect", i)], rows[("RRTConnect+TrajOpt", i)]
+        assert alone["solved"] and alone["correct_solution"] == 1
+        # X's record is the seed stage of X+TrajOpt's run: its time is that stage's time
+        assert alone["time"] == pytest.approx(seeded["timing"]["seed"], rel=1e-6)
+        assert seeded["time"] >= alone["time"]
+    assert rows[("RRTConnect", 0)]["info"]["seed_stage_of"] == "RRTConnect+TrajOpt"

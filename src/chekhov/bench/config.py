@@ -38,6 +38,9 @@ class BenchConfig:
         address: Ray cluster address (``ray.init(address=...)``); None starts a local Ray.
         planner_seed: base of the per-run seeds (one per case, the same wherever it runs).
         warm_up: each worker plans once, untimed, before its first timed run of a planner.
+        share_seed_runs: when both X and X+TrajOpt run on a case, X's run is the seed stage of
+            X+TrajOpt's run (same planner, same seed, same limit), recorded under both names:
+            halves the cost of RRT* and PRM*, which run to the limit.
     """
 
     scenes: tuple[str, ...]
@@ -55,6 +58,7 @@ class BenchConfig:
     address: str | None = None
     planner_seed: int = 0
     warm_up: bool = True
+    share_seed_runs: bool = True
 
     def __post_init__(self) -> None:
         from chekhov.bench.registry import PLANNER_NAMES, canonical_planner_name

@@ -291,8 +291,8 @@ class BenchDatabase:
              max_case: int | None = None, paths: bool = False) -> list[dict[str, Any]]:
         """Runs joined with their experiment, planner and side-table fields, one dict each
         (``scene``, ``planner``, ``timelimit``, every ``runs`` column, ``status_text``,
-        ``failure_kind_text``, ``trajopt_status``, ``timing`` (dict, s); with ``paths``,
-        ``path`` / ``seed_path`` as (T, dof) float arrays or None)."""
+        ``failure_kind_text``, ``trajopt_status``, ``timing`` (dict, s), ``info`` (dict);
+        with ``paths``, ``path`` / ``seed_path`` as (T, dof) float arrays or None)."""
         where: list[str] = []
         args: list[object] = []
         if experiment_ids is not None:
@@ -308,7 +308,7 @@ class BenchDatabase:
         sql = ("SELECT r.*, e.name AS scene, e.timelimit AS timelimit, p.name AS planner, "
                "k.status AS status_text, k.failure_kind AS failure_kind_text, "
                "k.trajopt_status AS trajopt_status, k.timing_json AS timing_json, "
-               "k.case_hash AS case_hash" + extra + " FROM runs r "
+               "k.info_json AS info_json, k.case_hash AS case_hash" + extra + " FROM runs r "
                "JOIN experiments e ON e.id = r.experimentid "
                "JOIN plannerConfigs p ON p.id = r.plannerid "
                "LEFT JOIN chekhov_runs k ON k.runid = r.id"
@@ -318,6 +318,7 @@ class BenchDatabase:
         for row in self.conn.execute(sql, args):
             d = dict(row)
             d["timing"] = json.loads(d.pop("timing_json") or "{}")
+            d["info"] = json.loads(d.pop("info_json") or "{}")
             if paths:
                 dof = d.pop("dof")
                 d["path"] = unpack_path(d.pop("path_blob"), dof)

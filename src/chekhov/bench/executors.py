@@ -40,7 +40,7 @@ def run_inline(tasks: Sequence[RunTask], config: BenchConfig) -> Iterator[RunRec
     """One worker in this process."""
     worker = BenchWorker(config)
     for t in tasks:
-        yield worker.run(t)
+        yield from worker.run_all(t)
 
 
 def _init_worker(config: BenchConfig) -> None:
@@ -48,9 +48,9 @@ def _init_worker(config: BenchConfig) -> None:
     _WORKER = BenchWorker(config)
 
 
-def _run_one(task: RunTask) -> RunRecord:
+def _run_one(task: RunTask) -> list[RunRecord]:
     assert _WORKER is not None, "worker not initialised"
-    return _WORKER.run(task)
+    return _WORKER.run_all(task)
 
 
 def run_local(tasks: Sequence[RunTask], config: BenchConfig) -> Iterator[RunRecord]:
@@ -71,7 +71,8 @@ def run_local(tasks: Sequence[RunTask], config: BenchConfig) -> Iterator[RunReco
             else:
                 os.environ[k] = old
     try:
-        yield from pool.imap_unordered(_run_one, tasks, chunksize=1)
+        for records in pool.imap_unordered(_run_one, tasks, chunksize=1):
+            yield from records
         pool.close()
     finally:
         pool.terminate()
@@ -112,7 +113,7 @@ def run_ray(tasks: Sequence[RunTask], config: BenchConfig) -> Iterator[RunRecord
             actor = pending.pop(ref)
             if queue:
                 pending[actor.run.remote(queue.pop())] = actor
-            yield ray.get(ref)
+            yield from ray.get(ref)
         for a in actors:
             ray.kill(a)
     finally:

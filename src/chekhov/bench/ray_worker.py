@@ -15,5 +15,5 @@ class RayWorker:
     def __init__(self, config: BenchConfig) -> None:
         self.worker = BenchWorker(config)
 
-    def run(self, task: RunTask) -> RunRecord:
-        return self.worker.run(task)
+    def run(self, task: RunTask) -> list[RunRecord]:
+        return self.worker.run_all(task)

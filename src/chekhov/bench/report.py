@@ -148,6 +148,13 @@ def markdown(db_path: Path, stats: Stats, experiments: list[dict[str, Any]],
         "seed when TrajOpt's trajectory is rejected. The planner's time limit bounds IK and "
         "the search; TrajOpt stages run under TrajOpt's own limit (in the settings) capped "
         "by what is left of it for X+TrajOpt; Roadmap+TrajOpt's seeder has its own caps.\n")
+    shared = sum(1 for r in rows if "seed_stage_of" in (r.get("info") or {}))
+    if shared:
+        add(f"{shared} runs of a sampling-based planner X are the seed stage of X+TrajOpt's "
+            "run on the same case (`chekhov bench` default; `--no-share-seed-runs` runs them "
+            "apart): the same planner with the same seed and limit, so its outcome is what a "
+            "separate run would give, at half the cost for RRT* and PRM*, which run to the "
+            "limit. Their `info` says `seed_stage_of`.\n")
     used = {r["plannerid"] for r in rows}
     for c in configs:
         if c["id"] in used:

@@ -12,7 +12,8 @@ load it); it records each planner's configuration (plannerConfigs) and skips the
 planner, case) runs the database already holds — checking that a stored run was made on the
 same case (content hash). The remaining runs go to the executor (local processes by default,
 or Ray); each finished run is written in its own transaction as it arrives, so an
-interruption loses nothing already written.
+interruption loses nothing already written. Where X and X+TrajOpt both run on a case, one run
+serves both (:func:`share_seed_runs`).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ import os
 import platform
 import socket
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from chekhov.bench.cases import CaseSet, cached_cases
@@ -30,7 +31,7 @@ from chekhov.bench.config import BenchConfig
 from chekhov.bench.database import BenchDatabase
 from chekhov.bench.executors import run_tasks
 from chekhov.bench.progress import ProgressBar
-from chekhov.bench.registry import PlannerSpec, settings_text
+from chekhov.bench.registry import PlannerSpec, seed_planner_name, settings_text
 from chekhov.bench.task import RunTask, case_hash
 from chekhov.bench.worker import load_roadmap_for
 from chekhov.errors import ChekhovError
@@ -133,8 +134,11 @@ def run_benchmark(config: BenchConfig, db_path: str | Path, progress: bool = Tru
         tasks = sorted((t for ts in per_scene for t in ts),
                        key=lambda t: (t.case_index, config.scenes.index(t.scene),
                                       config.planners.index(t.planner)))
+        n_runs = len(tasks)
+        if config.share_seed_runs:
+            tasks = share_seed_runs(tasks)
         workers = config.local_workers if config.executor == "local" else (config.workers or 0)
-        bar = ProgressBar(len(tasks), label=f"bench ({len(tasks)} runs, {skipped} done before)",
+        bar = ProgressBar(n_runs, label=f"bench ({n_runs} runs, {skipped} done before)",
                           enabled=progress)
         spent: dict[int, float] = dict.fromkeys(exp_ids.values(), 0.0)
         ran = 0
@@ -149,8 +153,23 @@ def run_benchmark(config: BenchConfig, db_path: str | Path, progress: bool = Tru
             bar.close()
             for eid, s in spent.items():
                 db.add_experiment_time(eid, s, config.n_cases)
-    return BenchOutcome(str(db_path), tuple(exp_ids.items()), len(tasks) + skipped, skipped,
+    return BenchOutcome(str(db_path), tuple(exp_ids.items()), n_runs + skipped, skipped,
                         ran, time.perf_counter() - t0, workers)
+
+
+def share_seed_runs(tasks: list[RunTask]) -> list[RunTask]:
+    """``tasks`` with each X run dropped where X+TrajOpt runs on the same case, that run then
+    recording its seed stage as X's run (``RunTask.records_seed_run``). Order kept."""
+    keys = {t.key for t in tasks}
+    out: list[RunTask] = []
+    for t in tasks:
+        base = seed_planner_name(t.planner)
+        if base is not None and (t.scene, base, t.case_index) in keys:
+            out.append(replace(t, records_seed_run=True))
+        elif (t.scene, f"{t.planner}+TrajOpt", t.case_index) not in keys \
+                or seed_planner_name(f"{t.planner}+TrajOpt") is None:
+            out.append(t)
+    return out
 
 
 def _run_seed(base: int, case_index: int) -> int:

@@ -24,6 +24,9 @@ class RunTask:
         T_world_ee_goal: (4, 4) goal end-effector pose in the world (m).
         time_limit_s: s, limit of the ``plan`` call.
         seed: per-run seed of the planner's random streams (reproducible wherever it runs).
+        records_seed_run: for "X+TrajOpt": the seed stage of this run is also recorded as X's
+            run on the case (X alone is the same planner, seeded the same way, so running it
+            twice would only repeat the work; see ``BenchConfig.share_seed_runs``).
     """
 
     scene: str
@@ -33,6 +36,7 @@ class RunTask:
     T_world_ee_goal: Array
     time_limit_s: float
     seed: int
+    records_seed_run: bool = False
 
     @property
     def key(self) -> tuple[str, str, int]:

@@ -14,9 +14,9 @@ import numpy as np
 
 from chekhov.bench.config import BenchConfig
 from chekhov.bench.record import RunRecord
-from chekhov.bench.registry import PlannerSpec
+from chekhov.bench.registry import PlannerSpec, seed_planner_name
 from chekhov.bench.task import RunTask
-from chekhov.planners.base import Planner, path_length
+from chekhov.planners.base import Planner, PlanResult, path_length
 from chekhov.roadmap.graph import Roadmap
 from chekhov.robot.goal import Goal
 from chekhov.world import World
@@ -64,6 +64,11 @@ class BenchWorker:
 
     def run(self, task: RunTask) -> RunRecord:
         """Run one task. A planner that raises yields a "crash" record (with the error)."""
+        return self.run_all(task)[0]
+
+    def run_all(self, task: RunTask) -> list[RunRecord]:
+        """Run one task: its record, then (``task.records_seed_run``) the record of its seed
+        stage as the seed planner's own run."""
         world = self.world(task.scene)
         planner = self.planner(task.scene, task.planner)
         goal = Goal.pose(np.asarray(task.T_world_ee_goal, dtype=float))
@@ -78,23 +83,34 @@ class BenchWorker:
         try:
             r = planner.plan(q0, goal, task.time_limit_s)
         except Exception as e:  # a crashing planner is a result, not the end of the benchmark
-            return RunRecord(task.scene, task.planner, task.case_index, task.case_hash,
-                             solved=False, status="crash", time_s=time.perf_counter() - t0,
-                             info={"error": f"{type(e).__name__}: {e}",
-                                   "traceback": traceback.format_exc(limit=4)},
-                             worker=self.name)
+            return [RunRecord(task.scene, task.planner, task.case_index, task.case_hash,
+                              solved=False, status="crash", time_s=time.perf_counter() - t0,
+                              info={"error": f"{type(e).__name__}: {e}",
+                                    "traceback": traceback.format_exc(limit=4)},
+                              worker=self.name)]
+        records = [self._record(world, task, task.planner, r)]
+        seed_run = getattr(planner, "last_seed_result", None)
+        base = seed_planner_name(task.planner)
+        if task.records_seed_run and base is not None and seed_run is not None:
+            records.append(self._record(world, task, base, seed_run,
+                                        {"seed_stage_of": task.planner}))
+        return records
+
+    def _record(self, world: World, task: RunTask, name: str, r: PlanResult,
+                extra_info: dict[str, object] | None = None) -> RunRecord:
+        """The record of ``r`` (planner ``name``), its path checked by the exact checker."""
         path = np.asarray(r.path, dtype=float) if r.success and r.path is not None else None
         exact_valid: bool | None = None
         t1 = time.perf_counter()
         if path is not None:
             exact_valid = bool(world.exact.path_valid(path, substeps=self.config.exact_substeps))
         exact_s = time.perf_counter() - t1
-        seed_path, seed_found = _seed_of(task.planner, r.seed, r.info, r.status)
+        seed_path, seed_found = _seed_of(name, r.seed, r.info, r.status)
         seed_time = float(r.timing_s["seed"]) if "seed" in r.timing_s else float("nan")
         trajopt_status = r.info.get("trajopt_status")
         fallback = r.info.get("fallback_to_seed")
         return RunRecord(
-            scene=task.scene, planner=task.planner, case_index=task.case_index,
+            scene=task.scene, planner=name, case_index=task.case_index,
             case_hash=task.case_hash, solved=path is not None, status=r.status,
             time_s=float(r.time_s), timing_s={k: float(v) for k, v in r.timing_s.items()},
             path=path, path_length=path_length(path) if path is not None else float("nan"),
@@ -103,7 +119,7 @@ class BenchWorker:
             seed_time_s=seed_time, seed_found=seed_found,
             trajopt_status=str(trajopt_status) if trajopt_status is not None else None,
             fallback_to_seed=bool(fallback) if fallback is not None else None,
-            info=_scalars(r.info), worker=self.name)
+            info={**_scalars(r.info), **(extra_info or {})}, worker=self.name)
 
 
 def load_roadmap_for(world: World, config: BenchConfig) -> Roadmap:

@@ -3,7 +3,7 @@
     chekhov bench [--scenes SCENE...] [--planners NAME...] [--cases N] [--time-limit S]
                   [--db FILE] [--workers W] [--executor local|ray] [--address A]
                   [--summary-json FILE] [--csv FILE] [--case-seed S] [--case-file FILE...]
-                  [--report DIR] [--no-progress]
+                  [--report DIR] [--no-share-seed-runs] [--no-progress]
     chekhov report DB --out DIR
 """
 
@@ -39,7 +39,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     config = BenchConfig(scenes=scenes, planners=expand_planner_names(args.planners),
                          n_cases=args.cases, time_limit_s=args.time_limit,
                          case_seed=args.case_seed, case_files=tuple(case_files),
-                         workers=args.workers, executor=args.executor, address=args.address)
+                         workers=args.workers, executor=args.executor, address=args.address,
+                         share_seed_runs=not args.no_share_seed_runs)
     print(f"bench: {len(config.scenes)} scene(s) × {len(config.planners)} planner(s) × "
           f"{config.n_cases} case(s), time limit {config.time_limit_s:g} s per plan, "
           f"executor {config.executor}, database {args.db}", file=sys.stderr)
@@ -112,6 +113,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="case files (chekhov cases generate) to use instead of generated "
                         "cases, one per scene")
     b.add_argument("--report", metavar="DIR", help="also write the report into DIR")
+    b.add_argument("--no-share-seed-runs", action="store_true",
+                   help="run X alone separately from X+TrajOpt (default: X's run is the seed "
+                        "stage of X+TrajOpt's run on the same case)")
     b.add_argument("--no-progress", action="store_true", help="no progress bar")
     b.set_defaults(func=_cmd_bench)
     r = sub.add_parser("report", help="Markdown report with the paper's tables and PNG plots "

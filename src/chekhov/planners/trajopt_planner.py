@@ -72,7 +72,8 @@ class SeededTrajOpt:
     """Any planner's path as the seed of TrajOpt (resampled to ≤ ``config.max_step_rad``).
 
     The seed planner gets ``time_limit_s``; TrajOpt then gets its own ``config.time_limit_s``
-    (the paper adds the two stages' times)."""
+    (the paper adds the two stages' times). ``last_seed_result`` holds the seed planner's
+    result of the last ``plan`` call (the benchmark records it as the seed planner's run)."""
 
     def __init__(self, world: World, seed_planner: Planner,
                  config: TrajOptConfig | None = None) -> None:
@@ -81,10 +82,13 @@ class SeededTrajOpt:
         self.config = config if config is not None else TrajOptConfig()
         self.name = f"{seed_planner.name}+TrajOpt"
         self._distances = TrajectoryDistances(world.fast)
+        self.last_seed_result: PlanResult | None = None
 
     def plan(self, q_start: Array, goal: Goal, time_limit_s: float = 10.0) -> PlanResult:
         t0 = time.perf_counter()
+        self.last_seed_result = None
         seeded = self.seed_planner.plan(q_start, goal, time_limit_s)
+        self.last_seed_result = seeded
         if not seeded.success or seeded.path is None:
             return PlanResult(False, None, f"seed_{seeded.status}", time.perf_counter() - t0,
                               timing_s={"seed": seeded.time_s}, info=dict(seeded.info))
