@@ -248,14 +248,26 @@ def cached_cases(world: World, n: int, seed: int = 0, cache_dir: str | Path | No
     (``{scene}-{hash[:12]}-s{seed}-n{n}.npz``). A cached file with at least n cases is reused
     (its first n cases are the same cases)."""
     d = Path(cache_dir) if cache_dir is not None else default_cache_dir()
-    stem = f"{world.scene.name}-{world.scene.content_hash()[:12]}-s{seed}"
-    for p in sorted(d.glob(f"{stem}-n*.npz")):
+    stem = cache_stem(world, seed)
+    cases = find_cached(world, d, stem, n)
+    if cases is None:
+        cases = generate_cases(world, n, seed)
+        cases.save(d / f"{stem}-n{n}.npz")
+    return cases
+
+
+def cache_stem(world: World, seed: int, kind: str = "") -> str:
+    """File name stem of cached cases: scene, content hash, seed and ``kind``."""
+    return f"{world.scene.name}-{world.scene.content_hash()[:12]}-s{seed}{kind}"
+
+
+def find_cached(world: World, cache_dir: Path, stem: str, n: int) -> CaseSet | None:
+    """The first n cases of a cached ``{stem}-n{N}.npz`` with N ≥ n, or None."""
+    for p in sorted(cache_dir.glob(f"{stem}-n*.npz")):
         try:
             have = int(p.stem.rsplit("-n", 1)[1])
         except ValueError:
             continue
         if have >= n:
             return CaseSet.load(p, world).head(n)
-    cases = generate_cases(world, n, seed)
-    cases.save(d / f"{stem}-n{n}.npz")
-    return cases
+    return None

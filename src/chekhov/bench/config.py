@@ -20,8 +20,8 @@ class BenchConfig:
     Attributes:
         scenes: built-in scene names (or scene YAML files).
         planners: registry names (:data:`chekhov.bench.registry.PLANNER_NAMES`).
-        n_cases: cases per scene: the first ``n_cases`` of ``cached_cases(world, n, case_seed)``
-            or of the case file given for the scene.
+        n_cases: cases per scene: the first ``n_cases`` of
+            ``cached_solvable_cases(world, n, case_seed)`` or of the case file given for the scene.
         time_limit_s: s, limit of every ``plan`` call (the paper: 300 s; RRT* and PRM* run to
             it). Stated in every report.
         case_seed: seed of the generated cases.

@@ -4,7 +4,7 @@
 name                      planner
 ========================  ==================================================================
 ``Roadmap+TrajOpt``       :class:`~chekhov.planners.roadmap_trajopt.RoadmapTrajOpt` on the
-                          scene's roadmap (``load_or_build_roadmap``): ours, with a 20 ms
+                          scene's roadmap (``load_or_build_roadmap``): ours, with a 40 ms
                           straight-line TrajOpt try before the roadmap seed
 ``Roadmap+TrajOpt(paper)`` the same with ``straight_line_first=False``: the paper's planner,
                           every query seeded from the roadmap

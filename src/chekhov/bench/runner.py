@@ -6,10 +6,10 @@ a :class:`~chekhov.bench.database.BenchDatabase`, resumable.
     out = run_benchmark(BenchConfig(("tabletop_pole",), ("Roadmap+TrajOpt", "TrajOpt"),
                                     n_cases=20, time_limit_s=2.0), "bench.db")
 
-Flow: the main process loads each scene, its cases (``cached_cases`` or a case file) and, for
-Roadmap+TrajOpt, its roadmap (built and saved once, before any worker starts, so workers only
-load it); it records each planner's configuration (plannerConfigs) and skips the (scene,
-planner, case) runs the database already holds — checking that a stored run was made on the
+Flow: the main process loads each scene, its cases (``cached_solvable_cases`` or a case file)
+and, for Roadmap+TrajOpt, its roadmap (built and saved once, before any worker starts, so
+workers only load it); it records each planner's configuration (plannerConfigs) and skips the
+(scene, planner, case) runs the database already holds — checking that a stored run was made on the
 same case (content hash). The remaining runs go to the executor (local processes by default,
 or Ray); each finished run is written in its own transaction as it arrives, so an
 interruption loses nothing already written. Where X and X+TrajOpt both run on a case, one run
@@ -26,12 +26,13 @@ import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from chekhov.bench.cases import CaseSet, cached_cases
+from chekhov.bench.cases import CaseSet
 from chekhov.bench.config import BenchConfig
 from chekhov.bench.database import BenchDatabase
 from chekhov.bench.executors import run_tasks
 from chekhov.bench.progress import ProgressBar
 from chekhov.bench.registry import PlannerSpec, seed_planner_name, settings_text
+from chekhov.bench.solvability import cached_solvable_cases
 from chekhov.bench.task import RunTask, case_hash
 from chekhov.bench.worker import load_roadmap_for
 from chekhov.errors import ChekhovError
@@ -66,8 +67,9 @@ def load_cases(world: World, config: BenchConfig) -> tuple[CaseSet, str]:
     scene = world.scene.name
     path = config.case_file(scene)
     if path is None:
-        return (cached_cases(world, config.n_cases, config.case_seed),
-                f"generated (seed {config.case_seed})")
+        cases = cached_solvable_cases(world, config.n_cases, config.case_seed)
+        return (cases, f"generated (seed {config.case_seed}, solvability pass: "
+                       f"{cases.replaced} replaced)")
     cases = CaseSet.load(path, world)
     if len(cases) < config.n_cases:
         raise ChekhovError(f"{path}: {len(cases)} cases, --cases asks for {config.n_cases}")

@@ -13,10 +13,18 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 
-from chekhov.bench.cases import CaseSet, sample_case
+from chekhov.bench.cases import (
+    CaseSet,
+    cache_stem,
+    cached_cases,
+    default_cache_dir,
+    find_cached,
+    sample_case,
+)
 from chekhov.errors import ChekhovError
 from chekhov.planners.base import Planner
 from chekhov.robot.goal import Goal
@@ -95,3 +103,20 @@ def solvability_pass(world: World, cases: CaseSet, planners: Sequence[Planner] |
 def _solved(planners: Sequence[Planner], q_start: np.ndarray, goal: Goal,
             time_limit_s: float) -> bool:
     return any(p.plan(q_start, goal, time_limit_s).success for p in planners)
+
+
+def cached_solvable_cases(world: World, n: int, seed: int = 0,
+                          cache_dir: str | Path | None = None, time_limit_s: float = 1.0
+                          ) -> CaseSet:
+    """``cached_cases(world, n, seed)`` after a solvability pass with the default planner
+    (RRTConnect, ``time_limit_s`` s per case), cached beside them
+    (``{scene}-{hash[:12]}-s{seed}-solvable-n{n}.npz``): what ``chekhov bench`` uses when no
+    case file is given, so no case that nothing solves counts against every planner."""
+    d = Path(cache_dir) if cache_dir is not None else default_cache_dir()
+    stem = cache_stem(world, seed, "-solvable")
+    cases = find_cached(world, d, stem, n)
+    if cases is None:
+        cases = solvability_pass(world, cached_cases(world, n, seed, d), None,
+                                 time_limit_s).cases
+        cases.save(d / f"{stem}-n{n}.npz")
+    return cases
