@@ -242,3 +242,19 @@ def test_cli_build_and_info(tmp_path, capsys):
     info = json.loads(capsys.readouterr().out)
     assert info["scene"] == SCENE and info["nodes"] >= 50 and info["edges"] > 0
     assert main(["roadmap", "info", str(tmp_path / "missing.npz")]) == 2
+
+
+def test_k_nearest_matches_a_kd_tree():
+    from scipy.spatial import cKDTree
+
+    from chekhov.roadmap.nearest import k_nearest
+
+    rng = np.random.default_rng(1)
+    P = rng.uniform(-2, 2, (500, 7))
+    x = rng.uniform(-2, 2, 7)
+    for k in (1, 10, 500, 800):
+        d_ref, i_ref = cKDTree(P).query(x, k=min(k, len(P)))
+        d, i = k_nearest(P, x, k)
+        np.testing.assert_allclose(d, np.atleast_1d(d_ref))
+        np.testing.assert_array_equal(i, np.atleast_1d(i_ref))
+    assert len(k_nearest(P[:0], x, 3)[1]) == 0

@@ -28,6 +28,7 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from chekhov.roadmap.graph import Roadmap
+from chekhov.roadmap.nearest import k_nearest
 from chekhov.roadmap.validity import RoadmapValidity
 from chekhov.world import World
 
@@ -77,8 +78,7 @@ class Connector:
         """(node, length rad) of free straight connections from q (itself known free), nearest
         nodes first, stopping after the first batch that yields one."""
         k = min(n_candidates, self.roadmap.n_nodes)
-        d, idx = self.tree.query(q, k=k)
-        d, idx = np.atleast_1d(d), np.atleast_1d(idx)
+        d, idx = k_nearest(self.roadmap.nodes, q, k)
         ok_node = self.validity.nodes_valid(idx)
         d, idx = d[ok_node], idx[ok_node]
         out: list[tuple[int, float]] = []
@@ -140,7 +140,7 @@ class Connector:
 
     def _via_proximal(self, q: Array) -> list[Connection]:
         P = self.proximal
-        _, idx = self.tree.query(q, k=min(8, self.roadmap.n_nodes))
+        _, idx = k_nearest(self.roadmap.nodes, q, 8)
         idx = np.atleast_1d(idx)
         idx = idx[self.validity.nodes_valid(idx)]
         if len(idx) == 0:

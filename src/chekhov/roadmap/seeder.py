@@ -8,13 +8,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import cKDTree
 
 from chekhov.roadmap.build import distal_values
 from chekhov.roadmap.connect import Connection, Connector
 from chekhov.roadmap.errors import RoadmapMismatchError
 from chekhov.roadmap.graph import Roadmap
 from chekhov.roadmap.kpaths import KShortestPaths
+from chekhov.roadmap.nearest import k_nearest
 from chekhov.roadmap.search import astar, path_edges, warm_up
 from chekhov.roadmap.validity import INVALID, RoadmapValidity
 from chekhov.robot.chain_kinematics import ChainKinematics
@@ -124,7 +124,7 @@ class RoadmapSeeder:
         self.resolution = (self.config.resolution if self.config.resolution is not None
                            else roadmap.config.resolution)
         self.kin = ChainKinematics.from_robot(world.robot)
-        self.ee_tree = cKDTree(roadmap.ee_position)
+        self._ee_position = np.ascontiguousarray(roadmap.ee_position, dtype=np.float64)
         self.validity = RoadmapValidity(roadmap, world.fast, self.resolution)
         self.kpaths = KShortestPaths(roadmap)
         P, distal = distal_values(world, roadmap.config)
@@ -140,16 +140,17 @@ class RoadmapSeeder:
         cfg = self.config
         T = np.asarray(T_world_ee, dtype=float)
         k = min(4 * cfg.ik_seeds, self.roadmap.n_nodes)
-        d_pos, idx = self.ee_tree.query(T[:3, 3], k=k)
+        d_pos, idx = k_nearest(self._ee_position, T[:3, 3], k)
         # rank by position + rotation distance (cos of the relative angle from the trace)
         tr = np.einsum("nij,ij->n", self.roadmap.ee_rotation[idx], T[:3, :3])
         angle = np.arccos(np.clip((tr - 1) / 2, -1, 1))
         order = np.argsort(d_pos + 0.2 * angle)[: cfg.ik_seeds]
         seeds = self.roadmap.nodes[idx[order]]
         sols = self._free_ik(T, seeds)
-        rng = np.random.default_rng(0)
         rounds = 0
         while len(sols) == 0 and rounds < cfg.ik_random_rounds:
+            if rounds == 0:
+                rng = np.random.default_rng(0)
             rounds += 1
             sols = self._free_ik(T, self.world.robot.sample_uniform(rng, cfg.ik_random_seeds))
         if len(sols) == 0:
