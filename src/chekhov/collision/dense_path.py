@@ -51,7 +51,7 @@ def _walk(P0, P1, n, m_first, m_last, check_ends, lever, chain, spheres, groups,
     K = P0.shape[0]
     _, gc, gr, gj = groups
     dk, dR, dp, ds = dyn
-    origin, h, delta, V, gfix = grids
+    origin, h, delta, V, gfix = grids[:5]
     G = gr.shape[0]
     Rb, pb, cw, gw, done, cand, pend = work
     for g in range(G):

@@ -1,7 +1,8 @@
 """Numba kernels of the fast checker's validity tests: one configuration, batches, motions.
 
 Each group (the spheres covering one collision geometry) has a bounding sphere; static
-obstacles and fixed robot parts are first ruled out by their distance grids, group then sphere.
+obstacles and fixed robot parts are first ruled out by their distance grids, group (on the
+coarse grids, which stay in cache) then sphere (on the fine ones).
 A sphere that may touch a primitive is settled in three steps: its inner ball (a ball inside
 the covered geometry, radius ``rin``) touching the primitive is a certain collision; otherwise
 the covered geometry itself (a box, cylinder or sphere when the robot has one: ``gexact``) is
@@ -81,7 +82,7 @@ def config_collides(q, chain, spheres, groups, static, dyn, fixed, fixed_csr, se
     dk, dR, dp, ds = dyn
     fk, fR, fp, fs = fixed
     _, _, fallow, clc, clr, cls, clm = fixed_csr
-    origin, h, delta, V, gfix = grids
+    origin, h, delta, V, gfix, hc, Vc = grids
     gk, eR, ep, es, pad = gexact
     chain_fk(q, parent, R0, p0, axis, Rb, pb)
     G = gr.shape[0]
@@ -93,9 +94,9 @@ def config_collides(q, chain, spheres, groups, static, dyn, fixed, fixed_csr, se
         done[g] = False
     npend = 0
     for g in range(G):
-        env = grid_classify(origin, h, delta, V[0], gw[g], gr[g])
+        env = grid_classify(origin, hc, delta, Vc[0], gw[g], gr[g])
         fg = gfix[g]
-        fix = 1 if fg < 0 else grid_classify(origin, h, delta, V[fg], gw[g], gr[g])
+        fix = 1 if fg < 0 else grid_classify(origin, hc, delta, Vc[fg], gw[g], gr[g])
         nd = 0
         for o in range(dk.shape[0]):
             if signed_distance(dk[o], dR[o], dp[o], ds[o], gw[g]) < gr[g]:
