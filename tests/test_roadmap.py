@@ -258,3 +258,35 @@ def test_k_nearest_matches_a_kd_tree():
         np.testing.assert_allclose(d, np.atleast_1d(d_ref))
         np.testing.assert_array_equal(i, np.atleast_1d(i_ref))
     assert len(k_nearest(P[:0], x, 3)[1]) == 0
+
+
+def test_interrupted_save_or_build_leaves_no_corrupt_file(tmp_path, world, roadmap,
+                                                          monkeypatch):
+    import chekhov.roadmap.io as rio
+
+    path = save_roadmap(roadmap, tmp_path / "rm.npz")
+    before = path.read_bytes()
+
+    def torn_savez(f, **arrays):  # writes part of the file, then the process is stopped
+        f.write(b"PK\x03\x04 partial")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(rio.np, "savez", torn_savez)
+    with pytest.raises(KeyboardInterrupt):
+        save_roadmap(roadmap, path)
+    monkeypatch.undo()
+    assert path.read_bytes() == before and not list(tmp_path.glob(".rm.npz.*"))
+    assert load_roadmap(path, world).n_nodes == roadmap.n_nodes
+
+    # a build stopped half-way writes nothing; the rerun builds and saves the roadmap
+    fresh = tmp_path / "fresh.npz"
+
+    def stop(msg: str) -> None:
+        if "edges" in msg or "connect" in msg:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        load_or_build_roadmap(world, SMALL, fresh, progress=stop)
+    assert not fresh.exists() and not list(tmp_path.glob(".fresh.npz.*"))
+    again = load_or_build_roadmap(world, SMALL, fresh)
+    assert fresh.is_file() and again.n_nodes == roadmap.n_nodes
