@@ -197,7 +197,7 @@ def summary_json(stats: dict[tuple[str, float], dict[str, PlannerStats]],
 
 def format_table(stats: dict[tuple[str, float], dict[str, PlannerStats]]) -> str:
     """The summary table (plain text), one line per scene and planner."""
-    head = (f"{'scene':20s} {'planner':20s} {'limit s':>7s} {'cases':>5s} {'fail':>7s} "
+    head = (f"{'scene':20s} {'planner':22s} {'limit s':>7s} {'cases':>5s} {'fail':>7s} "
             f"{'mean s':>8s} {'median s':>8s} {'p95 s':>8s} {'length':>7s} {'coll':>6s} "
             f"{'RM/mean':>8s} {'RM/med':>7s}")
     lines = [head, "-" * len(head)]
@@ -207,7 +207,7 @@ def format_table(stats: dict[tuple[str, float], dict[str, PlannerStats]]) -> str
             s = per[name]
             r = rat.get(name, {})
             lines.append(
-                f"{scene:20s} {name:20s} {limit:7.3g} {s.cases:5d} {s.failure_rate:7.1%} "
+                f"{scene:20s} {name:22s} {limit:7.3g} {s.cases:5d} {s.failure_rate:7.1%} "
                 f"{s.mean_runtime_s:8.3f} {s.median_runtime_s:8.3f} {s.p95_runtime_s:8.3f} "
                 f"{_fmt(s.mean_path_length_rad, 7, 2)} {s.collision_rate:6.1%} "
                 f"{_fmt(r.get('mean', math.nan), 8, 3)} {_fmt(r.get('median', math.nan), 7, 3)}")
