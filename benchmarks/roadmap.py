@@ -10,7 +10,7 @@ deterministic for a given --seed. One JSON object per scene; ``bench_scene`` ret
 dict so other planners' figures can be added.
 
 ``roadmap_trajopt`` (also under ``semantic_off`` and ``dynamic``) holds the Roadmap + TrajOpt
-planner's figures on the same cases (ours: a 20 ms straight-line TrajOpt try, then the roadmap;
+planner's figures on the same cases (ours: a 40 ms straight-line TrajOpt try, then the roadmap;
 ``roadmap_trajopt_paper``: every query seeded from the roadmap, the paper's planner):
 failure_rate, median_ms, mean_ms, p95_ms (wall, whole
 query including validation), median_cpu_ms / mean_cpu_ms (process CPU time: the one-core cost,

@@ -96,12 +96,18 @@ def markdown(db_path: Path, stats: Stats, experiments: list[dict[str, Any]],
         "continuous-time check — independently of the planner.\n")
     add("## How it was produced\n")
     add("```")
+    files = {e["name"]: str(e["case_source"]).split()[1] for e in experiments
+             if str(e["case_source"]).startswith("file ")}
     for (scene, limit), n in sorted(cases.items()):
         ps = " ".join(f"'{p}'" for p in plots.planner_order(list(stats[(scene, limit)])))
+        cf = f" --case-file cases/{files[scene]}" if scene in files else ""
         add(f"chekhov bench --scenes {scene} --planners {ps} --cases {n} "
-            f"--time-limit {limit:g} --db {db_path.name}")
+            f"--time-limit {limit:g}{cf} --db {db_path.name}")
     add(f"chekhov report {db_path.name} --out DIR")
     add("```\n")
+    if files:
+        add("Case files (`chekhov cases generate SCENE --n N --seed S`, with the paper's "
+            "solvability pass) are read from `cases/` beside this report.\n")
     for e in experiments:
         add(f"* experiment {e['id']} `{e['name']}`: cases {e['case_source']}, limit "
             f"{e['timelimit']:g} s, motion-check resolution {e['resolution']:g} rad, "
