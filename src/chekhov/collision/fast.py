@@ -179,6 +179,8 @@ class FastChecker:
         grids = [build_grid(lo, hi, h, self._static), *fixed_grids[:n]]
         coarse = [build_grid(lo, hi, 3 * h, self._static), *fixed_grids[n:]]
         self.grids = grids + coarse
+        # (origin, h, delta, fine values (M, n0, n1, n2), gfix, coarse h, coarse values,
+        #  group visiting order) — what validity.config_collides unpacks
         self._grids = (grids[0].origin, grids[0].h, grids[0].delta,
                        np.stack([g.values for g in grids]), gfix, coarse[0].h,
                        np.stack([g.values for g in coarse]),
