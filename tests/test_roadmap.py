@@ -290,3 +290,23 @@ def test_interrupted_save_or_build_leaves_no_corrupt_file(tmp_path, world, roadm
     assert not fresh.exists() and not list(tmp_path.glob(".fresh.npz.*"))
     again = load_or_build_roadmap(world, SMALL, fresh)
     assert fresh.is_file() and again.n_nodes == roadmap.n_nodes
+
+
+def test_nearest_poses_and_distinct_rows_match_numpy():
+    from scipy.spatial.transform import Rotation
+
+    from chekhov.roadmap.nearest import distinct_rows, nearest_poses
+
+    rng = np.random.default_rng(2)
+    P = rng.uniform(-1, 1, (300, 3))
+    R = Rotation.random(300, random_state=3).as_matrix()
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = Rotation.random(random_state=4).as_matrix(), rng.uniform(-1, 1, 3)
+    d = np.linalg.norm(P - T[:3, 3], axis=1)
+    near = np.argsort(d)[:24]
+    angle = np.arccos(np.clip((np.einsum("nij,ij->n", R[near], T[:3, :3]) - 1) / 2, -1, 1))
+    ref = near[np.argsort(d[near] + 0.2 * angle, kind="stable")[:6]]
+    np.testing.assert_array_equal(nearest_poses(P, R, T, 24, 6), ref)
+    Q = np.array([[0.0, 0], [0.05, 0], [0.2, 0], [0.21, 0.01], [1, 1]])
+    np.testing.assert_array_equal(distinct_rows(Q, 0.1, 5), Q[[0, 2, 4]])
+    np.testing.assert_array_equal(distinct_rows(Q, 0.1, 2), Q[[0, 2]])

@@ -14,7 +14,7 @@ from chekhov.roadmap.connect import Connection, Connector
 from chekhov.roadmap.errors import RoadmapMismatchError
 from chekhov.roadmap.graph import Roadmap
 from chekhov.roadmap.kpaths import KShortestPaths
-from chekhov.roadmap.nearest import k_nearest
+from chekhov.roadmap.nearest import distinct_rows, nearest_poses
 from chekhov.roadmap.search import astar, path_edges, warm_up
 from chekhov.roadmap.validity import INVALID, RoadmapValidity
 from chekhov.robot.chain_kinematics import ChainKinematics
@@ -125,6 +125,7 @@ class RoadmapSeeder:
                            else roadmap.config.resolution)
         self.kin = ChainKinematics.from_robot(world.robot)
         self._ee_position = np.ascontiguousarray(roadmap.ee_position, dtype=np.float64)
+        self._ee_rotation = np.ascontiguousarray(roadmap.ee_rotation, dtype=np.float64)
         self.validity = RoadmapValidity(roadmap, world.fast, self.resolution)
         self.kpaths = KShortestPaths(roadmap)
         P, distal = distal_values(world, roadmap.config)
@@ -139,13 +140,9 @@ class RoadmapSeeder:
         whose end-effector poses are nearest; ("", reason) on failure."""
         cfg = self.config
         T = np.asarray(T_world_ee, dtype=float)
-        k = min(4 * cfg.ik_seeds, self.roadmap.n_nodes)
-        d_pos, idx = k_nearest(self._ee_position, T[:3, 3], k)
-        # rank by position + rotation distance (cos of the relative angle from the trace)
-        tr = np.einsum("nij,ij->n", self.roadmap.ee_rotation[idx], T[:3, :3])
-        angle = np.arccos(np.clip((tr - 1) / 2, -1, 1))
-        order = np.argsort(d_pos + 0.2 * angle)[: cfg.ik_seeds]
-        seeds = self.roadmap.nodes[idx[order]]
+        # the 4·ik_seeds nearest end-effector positions, ranked by position (m) + 0.2 · angle
+        seeds = self.roadmap.nodes[nearest_poses(self._ee_position, self._ee_rotation, T,
+                                                 4 * cfg.ik_seeds, cfg.ik_seeds)]
         sols = self._free_ik(T, seeds)
         rounds = 0
         while len(sols) == 0 and rounds < cfg.ik_random_rounds:
@@ -156,13 +153,7 @@ class RoadmapSeeder:
         if len(sols) == 0:
             return sols, (f"no collision-free IK solution from {cfg.ik_seeds} roadmap seeds "
                           f"and {rounds * cfg.ik_random_seeds} random ones")
-        picked: list[Array] = []
-        for q in sols:
-            if all(np.linalg.norm(q - s) >= 0.1 for s in picked):
-                picked.append(q)
-                if len(picked) >= cfg.n_goal_ik:
-                    break
-        return np.array(picked), ""
+        return distinct_rows(sols, 0.1, cfg.n_goal_ik), ""
 
     def _free_ik(self, T: Array, seeds: Array) -> Array:
         """Converged, collision-free solutions from the seeds (stops after n_goal_ik)."""
@@ -243,8 +234,8 @@ class RoadmapSeeder:
             q_goal = Q_goal[qi]
             path = np.vstack([q_start[None], *sc.via, rm.nodes[nodes], *gc.via[::-1],
                               q_goal[None]])
-            keep = np.ones(len(path), dtype=bool)
-            keep[1:] = np.linalg.norm(np.diff(path, axis=0), axis=1) > 1e-12
+            keep = np.ones(len(path), dtype=bool)  # drop repeated configurations
+            keep[1:] = np.abs(np.diff(path, axis=0)).max(axis=1) > 1e-12
             info: dict[str, object] = {"start_connection": sc.kind, "goal_connection": gc.kind,
                                        "path_rank": rank, "start_node": sc.node,
                                        "goal_node": gc.node}
