@@ -22,15 +22,15 @@ from chekhov.collision.kernels import chain_fk, grid_cell, signed_distance
 from chekhov.collision.validity import _work, config_collides
 
 
-@njit(cache=True)
-def _grid_lower_bound(origin, h, delta, values, c):  # pragma: no cover - compiled
-    """A lower bound on the distance (m) from point c to the grid's primitives; -inf outside
-    the grid. See :func:`kernels.grid_classify` for the bound."""
-    q, e = grid_cell(origin, h, values, c)
+@njit(cache=True, inline="always")
+def _grid_lower_bound(origin, inv_h, h, delta, values, m, c):  # pragma: no cover - compiled
+    """A lower bound on the distance (m) from point c to the primitives of grid m of the stack
+    ``values``; -inf outside the grid. See :func:`kernels.grid_classify` for the bound."""
+    q, e = grid_cell(origin, inv_h, h, values, m, c)
     return -np.inf if q < 0 else q * delta - e
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _group_centres(q, chain, gc, gj, Rc, pc, gwc):  # pragma: no cover - compiled
     """World centre gwc[g] of each group's bounding sphere at q (runs the chain FK)."""
     chain_fk(q, chain[0], chain[1], chain[2], chain[3], Rc, pc)
@@ -52,6 +52,7 @@ def _walk(P0, P1, n, m_first, m_last, check_ends, lever, chain, spheres, groups,
     _, gc, gr, gj = groups
     dk, dR, dp, ds = dyn
     origin, h, delta, V, gfix = grids[:5]
+    ih = 1.0 / h
     G = gr.shape[0]
     Rb, pb, cw, gw, done, cand, pend = work
     for g in range(G):
@@ -73,9 +74,9 @@ def _walk(P0, P1, n, m_first, m_last, check_ends, lever, chain, spheres, groups,
             if chain_needed:
                 _group_centres(q, chain, gc, gj, Rc, pc, gwc)
                 chain_needed = False
-            d = _grid_lower_bound(origin, h, delta, V[0], gwc[g])
+            d = _grid_lower_bound(origin, ih, h, delta, V, 0, gwc[g])
             if gfix[g] >= 0:
-                d = min(d, _grid_lower_bound(origin, h, delta, V[gfix[g]], gwc[g]))
+                d = min(d, _grid_lower_bound(origin, ih, h, delta, V, gfix[g], gwc[g]))
             for o in range(dk.shape[0]):
                 d = min(d, signed_distance(dk[o], dR[o], dp[o], ds[o], gwc[g]))
             d -= gr[g]
@@ -150,6 +151,7 @@ def motions_valid_dense(Q0, Q1, resolution, lever, chain, spheres, groups, stati
     K = Q0.shape[1]
     work, until, puntil, step_len, q, Rc, pc, gwc = _buffers(K, spheres, groups, static, dyn,
                                                             fixed, self_pairs)
+    Rb, pb, cw, gw, done, cand, pend = work
     out = np.empty(Q0.shape[0], dtype=np.bool_)
     for i in range(Q0.shape[0]):
         d = 0.0
@@ -165,7 +167,8 @@ def motions_valid_dense(Q0, Q1, resolution, lever, chain, spheres, groups, stati
                 for a in range(K):
                     q[a] = Q0[i, a] + (k / n) * (Q1[i, a] - Q0[i, a])
                 if config_collides(q, chain, spheres, groups, static, dyn, fixed, fixed_csr,
-                                   self_pairs, grids, gexact, rin, *work):
+                                   self_pairs, grids, gexact, rin, Rb, pb, cw, gw, done, cand,
+                                   pend):
                     hit = True
                     break
         if hit:

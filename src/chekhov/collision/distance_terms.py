@@ -38,7 +38,7 @@ _GOLDEN = 0.3819660112501051
 _NO_TERM = 1e3  # distance written to unused slots (m): the hinge is zero there
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _world_axes(Rb, axis, out):  # pragma: no cover - compiled
     for k in range(axis.shape[0]):
         for a in range(3):
@@ -46,7 +46,7 @@ def _world_axes(Rb, axis, out):  # pragma: no cover - compiled
                          + Rb[k, a, 2] * axis[k, 2])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _add_point_gradient(n, c, joint, parent, aw, pb, scale, g):  # pragma: no cover - compiled
     """g += scale · nᵀ J_c: for each ancestor joint i of ``joint``, n · (a_i × (c - p_i))."""
     i = joint
@@ -60,7 +60,7 @@ def _add_point_gradient(n, c, joint, parent, aw, pb, scale, g):  # pragma: no co
         i = parent[i]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _centres(q, chain, sc, sj, gc, gj, Rb, pb, cw, gw):  # pragma: no cover - compiled
     chain_fk(q, chain[0], chain[1], chain[2], chain[3], Rb, pb)
     for s in range(sc.shape[0]):
@@ -75,14 +75,14 @@ def _centres(q, chain, sc, sj, gc, gj, Rb, pb, cw, gw):  # pragma: no cover - co
                         + pb[j, a])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _candidates(cap):  # pragma: no cover - compiled
     """Empty candidate arrays for ``cap`` terms: distance, sphere, other, kind, α, normal."""
     return (np.empty(cap), np.empty(cap, dtype=np.int64), np.empty(cap, dtype=np.int64),
             np.empty(cap, dtype=np.int64), np.empty(cap), np.empty((cap, 3)))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _select(cd, n, C, order):  # pragma: no cover - compiled
     """Indices of the min(C, n) smallest cd[:n] into order; returns how many."""
     m = min(C, n)

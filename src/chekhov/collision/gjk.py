@@ -21,7 +21,7 @@ from numba import njit
 MAX_ITER = 32
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def support_value(kind, R, p, size, u):  # pragma: no cover - compiled
     """h(u) = max over the primitive of x·u, for any direction u (3,)."""
     h = p[0] * u[0] + p[1] * u[1] + p[2] * u[2]
@@ -36,7 +36,7 @@ def support_value(kind, R, p, size, u):  # pragma: no cover - compiled
     return h + size[1] * abs(zu) + size[0] * np.sqrt(perp2)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def support_point(kind, R, p, size, u, sign, out):  # pragma: no cover - compiled
     """out = a point x of the primitive maximising x·(sign·u)."""
     for a in range(3):

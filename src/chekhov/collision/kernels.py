@@ -4,6 +4,13 @@ grid lookups, minimum distance and contacts (validity tests: ``validity.py``).
 Obstacle encoding (world frame): ``kind`` 0 sphere, 1 box, 2 cylinder (z axis); ``R`` (3, 3)
 and ``p`` (3,) its pose; ``size`` sphere (radius, 0, 0), box half extents, cylinder
 (radius, half length, 0). All lengths in metres.
+
+Small kernels called from other compiled functions (FK, signed distances, grid lookups) are
+``inline="always"``: numba does not inline a call into another cached function by itself, and
+the call (with its arrays passed as structs) costs more than the work. Inlining them doubled
+the fast checker's rate (measured in alternating runs on 100k uniform configurations: shelf
+262k → 519k checks/s, kitchen 227k → 484k). ``validity.config_collides`` stays a call:
+inlining it into its four callers gains about 6% for three times the compile time.
 """
 
 from __future__ import annotations
@@ -14,7 +21,7 @@ from numba import njit
 SPHERE, BOX, CYLINDER = 0, 1, 2
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def chain_fk(q, parent, R0, p0, axis, R_out, p_out):  # pragma: no cover - compiled
     """World pose of each revolute joint of a chain:
     T_k = T_parent(k) · placement_k · Rot(axis_k, q_k). Writes R_out (K, 3, 3), p_out (K, 3)."""
@@ -51,7 +58,7 @@ def chain_fk(q, parent, R0, p0, axis, R_out, p_out):  # pragma: no cover - compi
                 R_out[k, a, b] = A[a, 0] * Rq[0, b] + A[a, 1] * Rq[1, b] + A[a, 2] * Rq[2, b]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def transform_points(R, p, joint, local, out):  # pragma: no cover - compiled
     """out[i] = R[joint[i]] @ local[i] + p[joint[i]]."""
     for i in range(local.shape[0]):
@@ -61,7 +68,7 @@ def transform_points(R, p, joint, local, out):  # pragma: no cover - compiled
                          + R[j, a, 2] * local[i, 2] + p[j, a])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def signed_distance(kind, R, p, size, x):  # pragma: no cover - compiled
     """Signed distance (m) from point x to the obstacle surface (negative inside)."""
     d0 = x[0] - p[0]
@@ -88,7 +95,7 @@ def signed_distance(kind, R, p, size, x):  # pragma: no cover - compiled
     return np.sqrt(o0 * o0 + o1 * o1) + min(max(qr, qz), 0.0)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def signed_distance_normal(kind, R, p, size, x, n_out):  # pragma: no cover - compiled
     """Signed distance like :func:`signed_distance`; n_out gets the unit world gradient
     (the direction moving x away from the obstacle fastest)."""
@@ -141,32 +148,41 @@ def signed_distance_normal(kind, R, p, size, x, n_out):  # pragma: no cover - co
     return sd
 
 
-@njit(cache=True)
-def grid_cell(origin, h, values, c):  # pragma: no cover - compiled
-    """(stored value q, distance e from c to the nearest voxel centre) of a distance grid at
-    point c; q = -1 outside the grid."""
-    fi = (c[0] - origin[0]) / h
-    fj = (c[1] - origin[1]) / h
-    fk = (c[2] - origin[2]) / h
-    i = int(np.floor(fi + 0.5))
-    j = int(np.floor(fj + 0.5))
-    k = int(np.floor(fk + 0.5))
-    if i < 0 or j < 0 or k < 0 or i >= values.shape[0] or j >= values.shape[1] \
-            or k >= values.shape[2]:
+@njit(cache=True, inline="always")
+def grid_cell(origin, inv_h, h, values, m, c):  # pragma: no cover - compiled
+    """(stored value q, distance e (m) from c to the voxel centre read) of grid m of the
+    stacked grids ``values`` (M, n0, n1, n2), spacing h (m), at point c; q = -1 outside.
+
+    Hot: one lookup per sphere. Multiplying by 1 / h, truncating (the coordinates are checked
+    to be ≥ -0.5 first, so int(f + 0.5) = floor(f + 0.5)) and indexing the stack directly
+    instead of slicing one grid out of it make a lookup about 6 times cheaper than division,
+    ``np.floor`` and a slice (measured: 34 group lookups per configuration, 2.3 → 0.37 µs).
+    """
+    fi = (c[0] - origin[0]) * inv_h
+    fj = (c[1] - origin[1]) * inv_h
+    fk = (c[2] - origin[2]) * inv_h
+    # written so that NaN and infinities land outside too
+    if not (-0.5 <= fi < values.shape[1] - 0.5 and -0.5 <= fj < values.shape[2] - 0.5
+            and -0.5 <= fk < values.shape[3] - 0.5):
         return -1, 0.0
-    return int(values[i, j, k]), h * np.sqrt((fi - i) ** 2 + (fj - j) ** 2 + (fk - k) ** 2) + 1e-9
+    i = int(fi + 0.5)
+    j = int(fj + 0.5)
+    k = int(fk + 0.5)
+    return (int(values[m, i, j, k]),
+            h * np.sqrt((fi - i) ** 2 + (fj - j) ** 2 + (fk - k) ** 2) + 1e-9)
 
 
-@njit(cache=True)
-def grid_classify(origin, h, delta, values, c, r):  # pragma: no cover - compiled
-    """What a distance grid (see ``grid.py``) proves about sphere (c, r).
+@njit(cache=True, inline="always")
+def grid_classify(origin, inv_h, h, delta, values, m, c, r):  # pragma: no cover - compiled
+    """What grid m of the stacked distance grids ``values`` (see ``grid.py``) proves about
+    sphere (c, r).
 
     Returns 1 when the sphere touches nothing in the grid, -1 when it certainly overlaps a
     primitive of the grid, 0 when undecided (near a surface or outside the grid). Stored value
-    q at the nearest voxel centre v bounds the distance: q·delta ≤ d(v) < (q + 1)·delta, and
+    q at the voxel centre v read bounds the distance: q·delta ≤ d(v) < (q + 1)·delta, and
     |d(c) - d(v)| ≤ |c - v| (the distance field is 1-Lipschitz).
     """
-    q, e = grid_cell(origin, h, values, c)
+    q, e = grid_cell(origin, inv_h, h, values, m, c)
     if q < 0:
         return 0
     if q * delta - e >= r:

@@ -21,7 +21,7 @@ from chekhov.collision.gjk import primitives_collide
 from chekhov.collision.kernels import chain_fk, grid_classify, signed_distance
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _place(Rb, pb, gk, gj, eR, ep, g, Rw, pw):  # pragma: no cover - compiled
     """World pose of group g's exact primitive."""
     j = gj[g]
@@ -33,7 +33,7 @@ def _place(Rb, pb, gk, gj, eR, ep, g, Rw, pw):  # pragma: no cover - compiled
                         + Rb[j, a, 2] * eR[g, 2, b])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _centers(Rb, pb, sj, sc, a, b, cw):  # pragma: no cover - compiled
     for i in range(a, b):
         j = sj[i]
@@ -42,7 +42,7 @@ def _centers(Rb, pb, sj, sc, a, b, cw):  # pragma: no cover - compiled
                         + pb[j, x])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _group_hits(g, src, kind, R, p, size, cand, ncand, cw, sr, rin, gstart, gk, pend, npend
                 ):  # pragma: no cover - compiled
     """Spheres of group g against the primitives cand[:ncand]: -1 when the geometry certainly
@@ -84,6 +84,8 @@ def config_collides(q, chain, spheres, groups, static, dyn, fixed, fixed_csr, se
     _, _, fallow, clc, clr, cls, clm = fixed_csr
     origin, h, delta, V, gfix, hc, Vc, order = grids
     gk, eR, ep, es, pad = gexact
+    ih = 1.0 / h
+    ihc = 1.0 / hc
     chain_fk(q, parent, R0, p0, axis, Rb, pb)
     G = gr.shape[0]
     for g in range(G):
@@ -95,9 +97,9 @@ def config_collides(q, chain, spheres, groups, static, dyn, fixed, fixed_csr, se
     npend = 0
     for gi in range(G):
         g = order[gi]  # groups that collide most often first: collisions end the test early
-        env = grid_classify(origin, hc, delta, Vc[0], gw[g], gr[g])
+        env = grid_classify(origin, ihc, hc, delta, Vc, 0, gw[g], gr[g])
         fg = gfix[g]
-        fix = 1 if fg < 0 else grid_classify(origin, hc, delta, Vc[fg], gw[g], gr[g])
+        fix = 1 if fg < 0 else grid_classify(origin, ihc, hc, delta, Vc, fg, gw[g], gr[g])
         nd = 0
         for o in range(dk.shape[0]):
             if signed_distance(dk[o], dR[o], dp[o], ds[o], gw[g]) < gr[g]:
@@ -115,9 +117,9 @@ def config_collides(q, chain, spheres, groups, static, dyn, fixed, fixed_csr, se
         if env != 1:
             maybe = False
             for s in range(gstart[g], gstart[g + 1]):
-                e = grid_classify(origin, h, delta, V[0], cw[s], sr[s])
+                e = grid_classify(origin, ih, h, delta, V, 0, cw[s], sr[s])
                 if e == -1 and rin[s] > 0.0 and \
-                        grid_classify(origin, h, delta, V[0], cw[s], rin[s]) == -1:
+                        grid_classify(origin, ih, h, delta, V, 0, cw[s], rin[s]) == -1:
                     return True
                 if e != 1:
                     maybe = True
@@ -134,9 +136,9 @@ def config_collides(q, chain, spheres, groups, static, dyn, fixed, fixed_csr, se
         if fix != 1:
             maybe = False
             for s in range(gstart[g], gstart[g + 1]):
-                f = grid_classify(origin, h, delta, V[fg], cw[s], sr[s])
+                f = grid_classify(origin, ih, h, delta, V, fg, cw[s], sr[s])
                 if f == -1 and rin[s] > 0.0 and \
-                        grid_classify(origin, h, delta, V[fg], cw[s], rin[s]) == -1:
+                        grid_classify(origin, ih, h, delta, V, fg, cw[s], rin[s]) == -1:
                     return True
                 if f != 1:
                     maybe = True
@@ -288,9 +290,9 @@ def group_block_rates(Q, chain, groups, grids):  # pragma: no cover - compiled
             for a in range(3):
                 c[a] = (Rb[j, a, 0] * gc[g, 0] + Rb[j, a, 1] * gc[g, 1]
                         + Rb[j, a, 2] * gc[g, 2] + pb[j, a])
-            blocked = grid_classify(origin, hc, delta, Vc[0], c, gr[g]) != 1
+            blocked = grid_classify(origin, 1.0 / hc, hc, delta, Vc, 0, c, gr[g]) != 1
             if not blocked and gfix[g] >= 0:
-                blocked = grid_classify(origin, hc, delta, Vc[gfix[g]], c, gr[g]) != 1
+                blocked = grid_classify(origin, 1.0 / hc, hc, delta, Vc, gfix[g], c, gr[g]) != 1
             if blocked:
                 rate[g] += 1.0
     return rate / max(Q.shape[0], 1)

@@ -28,7 +28,7 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from chekhov.roadmap.graph import Roadmap
-from chekhov.roadmap.nearest import k_nearest
+from chekhov.roadmap.nearest import NearestNodes
 from chekhov.roadmap.validity import RoadmapValidity
 from chekhov.world import World
 
@@ -68,6 +68,7 @@ class Connector:
         self.proximal = proximal
         self.distal = distal
         self.tree = cKDTree(roadmap.nodes)
+        self.nearest = NearestNodes(roadmap.nodes)
         self.rng = np.random.default_rng(0)
 
     def _motions(self, Q0: Array, Q1: Array) -> NDArray[np.bool_]:
@@ -78,7 +79,7 @@ class Connector:
         """(node, length rad) of free straight connections from q (itself known free), nearest
         nodes first, stopping after the first batch that yields one."""
         k = min(n_candidates, self.roadmap.n_nodes)
-        d, idx = k_nearest(self.roadmap.nodes, q, k)
+        d, idx = self.nearest.query(q, k)
         ok_node = self.validity.nodes_valid(idx)
         d, idx = d[ok_node], idx[ok_node]
         out: list[tuple[int, float]] = []
@@ -140,7 +141,7 @@ class Connector:
 
     def _via_proximal(self, q: Array) -> list[Connection]:
         P = self.proximal
-        _, idx = k_nearest(self.roadmap.nodes, q, 8)
+        _, idx = self.nearest.query(q, 8)
         idx = np.atleast_1d(idx)
         idx = idx[self.validity.nodes_valid(idx)]
         if len(idx) == 0:

@@ -1,6 +1,9 @@
-"""Brute-force k nearest neighbours of one point among a few thousand roadmap nodes: a
-compiled loop plus a partial sort beats a k-d tree query (and its Python call) at this size
-(measured on a 2000-node, 7-D roadmap: 21 µs against 40 µs for ``cKDTree.query``, k = 32).
+"""Brute-force k nearest neighbours of one point among a few thousand roadmap nodes.
+
+A compiled loop over the coordinates stored column by column (``NearestNodes`` keeps the
+transposed copy), then one pass that keeps the k best by insertion, beats a k-d tree query
+and its Python call at this size (measured on a 2082-node, 7-D roadmap, k = 32: 10 µs,
+against 42 µs for row-major distances + ``argpartition`` and 40 µs for ``cKDTree.query``).
 """
 
 from __future__ import annotations
@@ -14,31 +17,60 @@ IntArray = NDArray[np.int64]
 
 
 @njit(cache=True)
-def _k_nearest(points, x, k):  # pragma: no cover - compiled
-    n, dim = points.shape
-    d2 = np.empty(n)
-    for i in range(n):
-        s = 0.0
-        for a in range(dim):
-            t = points[i, a] - x[a]
-            s += t * t
-        d2[i] = s
-    idx = np.argpartition(d2, k - 1)[:k] if k < n else np.arange(n)
-    idx = idx[np.argsort(d2[idx], kind="mergesort")]
-    return np.sqrt(d2[idx]), idx.astype(np.int64)
+def _k_nearest(points_T, x, k):  # pragma: no cover - compiled
+    dim, n = points_T.shape
+    d2 = np.zeros(n)
+    for a in range(dim):  # column by column: the inner loop vectorises
+        xa = x[a]
+        row = points_T[a]
+        for i in range(n):
+            t = row[i] - xa
+            d2[i] += t * t
+    k = min(k, n)
+    best = np.full(k, np.inf)
+    idx = np.zeros(k, dtype=np.int64)
+    worst = np.inf
+    for i in range(n):  # insertion into the k best so far; ties keep the lower index first
+        s = d2[i]
+        if s < worst:
+            j = k - 1
+            while j > 0 and best[j - 1] > s:
+                best[j] = best[j - 1]
+                idx[j] = idx[j - 1]
+                j -= 1
+            best[j] = s
+            idx[j] = i
+            worst = best[k - 1]
+    return np.sqrt(best), idx
+
+
+class NearestNodes:
+    """k nearest rows of a fixed point set (N, D), Euclidean; keeps a transposed copy."""
+
+    def __init__(self, points: Array) -> None:
+        self.points_T = np.ascontiguousarray(np.asarray(points, dtype=np.float64).T)
+
+    def __len__(self) -> int:
+        return int(self.points_T.shape[1])
+
+    def query(self, x: Array, k: int) -> tuple[Array, IntArray]:
+        """(distances (k,), indices (k,)) of the k points nearest to x (D,), nearest first
+        (all N when k ≥ N)."""
+        if len(self) == 0 or k <= 0:
+            return np.empty(0), np.empty(0, dtype=np.int64)
+        return _k_nearest(self.points_T, np.ascontiguousarray(x, dtype=np.float64), int(k))
 
 
 def k_nearest(points: Array, x: Array, k: int) -> tuple[Array, IntArray]:
     """(distances (k,), indices (k,)) of the k rows of ``points`` (N, D) nearest to x (D,)
-    in Euclidean distance, nearest first (all N when k ≥ N)."""
-    if len(points) == 0 or k <= 0:
-        return np.empty(0), np.empty(0, dtype=np.int64)
-    return _k_nearest(points, np.ascontiguousarray(x, dtype=np.float64), int(k))
+    in Euclidean distance, nearest first (all N when k ≥ N). For repeated queries against
+    the same points, ``NearestNodes`` saves the transposition."""
+    return NearestNodes(points).query(x, k)
 
 
 @njit(cache=True)
-def _nearest_poses(positions, rotations, p, R, k, n, w_rot):  # pragma: no cover - compiled
-    d, idx = _k_nearest(positions, p, k)
+def _nearest_poses(positions_T, rotations, p, R, k, n, w_rot):  # pragma: no cover - compiled
+    d, idx = _k_nearest(positions_T, p, k)
     score = np.empty(len(idx))
     for m in range(len(idx)):
         tr = 0.0
@@ -50,7 +82,7 @@ def _nearest_poses(positions, rotations, p, R, k, n, w_rot):  # pragma: no cover
     return idx[np.argsort(score, kind="mergesort")[:n]]
 
 
-def nearest_poses(positions: Array, rotations: Array, T: Array, k: int, n: int,
+def nearest_poses(positions: NearestNodes, rotations: Array, T: Array, k: int, n: int,
                   w_rot: float = 0.2) -> IntArray:
     """Indices of the n poses (positions (N, 3) m, rotations (N, 3, 3)) nearest to the pose T
     (4, 4): the k nearest by position, ranked by position distance (m) + ``w_rot`` · rotation
@@ -58,7 +90,7 @@ def nearest_poses(positions: Array, rotations: Array, T: Array, k: int, n: int,
     if len(positions) == 0 or k <= 0 or n <= 0:
         return np.empty(0, dtype=np.int64)
     T = np.asarray(T, dtype=np.float64)
-    return _nearest_poses(positions, rotations, np.ascontiguousarray(T[:3, 3]),
+    return _nearest_poses(positions.points_T, rotations, np.ascontiguousarray(T[:3, 3]),
                           np.ascontiguousarray(T[:3, :3]), int(k), int(n), float(w_rot))
 
 

@@ -14,7 +14,7 @@ from chekhov.roadmap.connect import Connection, Connector
 from chekhov.roadmap.errors import RoadmapMismatchError
 from chekhov.roadmap.graph import Roadmap
 from chekhov.roadmap.kpaths import KShortestPaths
-from chekhov.roadmap.nearest import distinct_rows, nearest_poses
+from chekhov.roadmap.nearest import NearestNodes, distinct_rows, nearest_poses
 from chekhov.roadmap.search import astar, path_edges, warm_up
 from chekhov.roadmap.validity import INVALID, RoadmapValidity
 from chekhov.robot.chain_kinematics import ChainKinematics
@@ -124,7 +124,7 @@ class RoadmapSeeder:
         self.resolution = (self.config.resolution if self.config.resolution is not None
                            else roadmap.config.resolution)
         self.kin = ChainKinematics.from_robot(world.robot)
-        self._ee_position = np.ascontiguousarray(roadmap.ee_position, dtype=np.float64)
+        self._ee_position = NearestNodes(roadmap.ee_position)
         self._ee_rotation = np.ascontiguousarray(roadmap.ee_rotation, dtype=np.float64)
         self.validity = RoadmapValidity(roadmap, world.fast, self.resolution)
         self.kpaths = KShortestPaths(roadmap)

@@ -96,7 +96,7 @@ class ChainKinematics:
         return out, ok
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _axis_rotation(a, angle, out):  # pragma: no cover - compiled
     """Rodrigues: rotation by ``angle`` (rad) about unit axis a, written into out (3, 3)."""
     c = np.cos(angle)
@@ -114,7 +114,7 @@ def _axis_rotation(a, angle, out):  # pragma: no cover - compiled
     out[2, 2] = t * z * z + c
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _mul3(A, B, out):  # pragma: no cover - compiled
     """out = A @ B for 3x3 matrices (out must not alias A or B)."""
     for i in range(3):
@@ -122,7 +122,7 @@ def _mul3(A, B, out):  # pragma: no cover - compiled
             out[i, j] = A[i, 0] * B[0, j] + A[i, 1] * B[1, j] + A[i, 2] * B[2, j]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def chain_fk(q, R0, p0, axis, Rj, pj):  # pragma: no cover - compiled
     """World rotation Rj (K, 3, 3) and origin pj (K, 3) of each joint at q (serial chain)."""
     Rq = np.empty((3, 3))
@@ -150,7 +150,7 @@ def ee_batch(Q, R0, p0, axis, Rf, pf, R_out, p_out):  # pragma: no cover - compi
         p_out[i] = pj[K - 1] + Rj[K - 1] @ pf
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def log3(R):  # pragma: no cover - compiled
     """Rotation vector (3,) of a rotation matrix, rad."""
     tr = R[0, 0] + R[1, 1] + R[2, 2]
@@ -175,7 +175,7 @@ def log3(R):  # pragma: no cover - compiled
     return theta / (2.0 * np.sin(theta)) * w
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _solve_spd6(A, b, x):  # pragma: no cover - compiled
     """x = A⁻¹ b for a symmetric positive definite 6x6 A (Cholesky; A is overwritten)."""
     n = 6
