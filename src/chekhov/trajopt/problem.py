@@ -112,8 +112,7 @@ class TrajOptProblem:
     def goal_tolerance(self) -> Array:
         """Per-component tolerances (6,) of the goal error: a box inside the tolerance balls."""
         g = self.goal
-        return np.r_[np.full(3, g.position_tolerance), np.full(3, g.orientation_tolerance)] / \
-            np.sqrt(3.0)
+        return np.repeat([g.position_tolerance, g.orientation_tolerance], 3) / np.sqrt(3.0)
 
     # --- evaluation ---------------------------------------------------------------------
     def evaluate(self, Q: Array, timing: dict[str, float] | None = None) -> Evaluation:
@@ -152,7 +151,7 @@ class TrajOptProblem:
         pin.updateFramePlacement(robot.model, robot.data, robot.ee_frame_id)
         T = robot.data.oMf[robot.ee_frame_id]
         M = T.rotation @ T_goal[:3, :3].T
-        e = np.r_[T.translation - T_goal[:3, 3], pin.log3(M)]
+        e = np.concatenate([T.translation - T_goal[:3, 3], pin.log3(M)])
         Jr = pin.Jlog3(M) @ M.T @ J[3:]
         return e, np.vstack([J[:3], Jr])
 
@@ -192,8 +191,8 @@ class TrajOptProblem:
         cfg = self.config
         d_safe = cfg.safety_margin_m
         out = {
-            "collision": np.r_[np.maximum(d_safe - ev.dist_waypoint, 0).ravel(),
-                               np.maximum(d_safe - ev.dist_segment, 0).ravel()],
+            "collision": np.concatenate([np.maximum(d_safe - ev.dist_waypoint, 0).ravel(),
+                                         np.maximum(d_safe - ev.dist_segment, 0).ravel()]),
             "goal": np.maximum(np.abs(ev.goal_error) - self.goal_tolerance, 0)
             if self.goal.is_pose else np.zeros(0),
         }

@@ -93,7 +93,7 @@ class TrajOptQP:
         self.slack_coeff = np.concatenate(self._slack_coeff) if self._slack_coeff else \
             np.zeros(0)
         # assemble the pattern: identity rows (x, then slacks), then each block's rows
-        ident_rows = np.r_[np.arange(self.n_x), self._rows + np.arange(self._n_slack)]
+        ident_rows = np.concatenate([np.arange(self.n_x), self._rows + np.arange(self._n_slack)])
         self.n_rows = self._rows + self._n_slack
         rows = [ident_rows]
         cols = [np.arange(n_z, dtype=np.int64)]
@@ -126,8 +126,9 @@ class TrajOptQP:
         if T == 1:
             diag = np.full(K, problem.config.proximal_weight)
         has_up = np.arange(T * K) >= K
-        counts = np.r_[1 + has_up.astype(np.int64), np.zeros(self._n_slack, dtype=np.int64)]
-        indptr = np.r_[0, np.cumsum(counts)]
+        counts = np.concatenate([1 + has_up.astype(np.int64),
+                                 np.zeros(self._n_slack, dtype=np.int64)])
+        indptr = np.concatenate([[0], np.cumsum(counts)])
         indices = np.empty(indptr[-1], dtype=np.int64)
         data = np.empty(indptr[-1])
         first = indptr[:-1][:T * K]
@@ -221,7 +222,7 @@ class TrajOptQP:
                 lo_[b.start:b.start + b.n:2], u[b.start:b.start + b.n:2] = -INF, c + tol
                 lo_[b.start + 1:b.start + b.n:2] = c - tol
                 u[b.start + 1:b.start + b.n:2] = INF
-        q = np.r_[-p.config.proximal_weight * x_bar, mu * self.slack_coeff]
+        q = np.concatenate([-p.config.proximal_weight * x_bar, mu * self.slack_coeff])
         return vals[self._order], lo_, u, q
 
     def solve(self, ev: Evaluation, x_bar: Array, trust: float, mu: float
@@ -233,10 +234,13 @@ class TrajOptQP:
         relinearised = ev is not self._last_ev
         self._last_ev = ev
         if self._solver is None:
+            col_counts = np.bincount(self._A_cols, minlength=self.n_z)
             A = sp.csc_matrix((Ax, self._A_rows[self._order],
-                               np.r_[0, np.cumsum(np.bincount(self._A_cols, minlength=self.n_z))]),
+                               np.concatenate([[0], np.cumsum(col_counts)])),
                               shape=(self.n_rows, self.n_z))
-            self._solver = osqp.OSQP()
+            # naming the backend skips OSQP's search for the CUDA and MKL ones, whose failed
+            # imports hit the file system on every construction (0.5 ms a plan)
+            self._solver = osqp.OSQP(algebra="builtin")
             eps = self.problem.config.osqp_eps
             self._solver.setup(self.P, q, A, lo_, u, verbose=False, eps_abs=eps, eps_rel=eps,
                                polishing=False, max_iter=4000, warm_starting=True,
@@ -247,7 +251,7 @@ class TrajOptQP:
         else:  # trust-region shrink: same matrix, no refactorisation
             self._solver.update(l=lo_, u=u, q=q)
         if relinearised:  # start ADMM at the linearisation point and its violations
-            z0 = np.r_[x_bar, np.maximum(self._residual_slacks(x_bar, lo_, u), 0.0)]
+            z0 = np.concatenate([x_bar, np.maximum(self._residual_slacks(x_bar, lo_, u), 0.0)])
             self._solver.warm_start(x=z0)
         res = self._solver.solve(raise_error=False)
         self.admm_iterations += int(res.info.iter)
