@@ -36,8 +36,8 @@ class RunRecord:
         seed_length: rad, joint-space length of ``seed_path`` (nan without one).
         seed_time_s: s, time of the seed stage (``timing_s["seed"]``); nan without one.
         seed_found: the seed stage produced a path; None for planners without one.
-        trajopt_status: TrajOpt's own status ("converged", "iteration_limit", "infeasible",
-            "collision"); None when TrajOpt did not run.
+        trajopt_status: TrajOpt's own status ("converged", "iteration_limit", "exact_clear",
+            "infeasible", "collision"); None when TrajOpt did not run.
         fallback_to_seed: Roadmap+TrajOpt returned its (exactly checked) seed.
         info: scalar extras of ``PlanResult.info`` (iterations, counts, error text).
         worker: "host:pid" of the process that ran it.

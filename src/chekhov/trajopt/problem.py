@@ -234,9 +234,14 @@ class TrajOptProblem:
             out["torque_nm"] = float(np.max(np.abs(ev.torque) - self.torque_limit, initial=0.0))
         return out
 
+    def unmet(self, ev: Evaluation, tol: float = 1e-4) -> set[str]:
+        """Names (``constraint_report``'s keys) of the constraints violated by more than tol
+        (collision: clearance below min_clearance_m)."""
+        return {k for k, v in self.constraint_report(ev).items() if v > tol}
+
     def satisfied(self, ev: Evaluation, tol: float = 1e-4) -> bool:
         """Whether every constraint holds (collision to min_clearance_m, the rest to tol)."""
-        return all(v <= tol for v in self.constraint_report(ev).values())
+        return not self.unmet(ev, tol)
 
 
 def straight_line_seed(q_start: Array, q_goal: Array, n_waypoints: int) -> Array:

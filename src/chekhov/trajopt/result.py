@@ -18,10 +18,12 @@ class TrajOptResult:
 
     Attributes:
         trajectory: optimised waypoints (T, K), rad; the first row is the start.
-        status: "converged", "iteration_limit" (both successes), "infeasible" (constraints
-            still violated after the last penalty increase) or "collision" (the validation found
-            a collision: never returned as a success).
-        success: status is "converged" or "iteration_limit" and the validation passed.
+        status: "converged", "iteration_limit", "exact_clear" (successes; the last: only the
+            sphere model's clearance was short and the validation passed, see
+            ``TrajOptConfig.accept_exact_clear``), "infeasible" (constraints still violated
+            after the last penalty increase) or "collision" (the validation found a collision:
+            never returned as a success).
+        success: status is one of the successes above (the validation, where on, passed).
         valid: result of the validation (None when validation is "none").
         costs: final values: "smoothness" (rad²), "merit".
         violations: final constraint violations: "collision_m" (largest hinge below
@@ -47,6 +49,11 @@ class TrajOptResult:
     timing_s: dict[str, float]
     seed: Array
     info: dict[str, object] = field(default_factory=dict)
+
+    def unmet(self, tol: float = 1e-4) -> set[str]:
+        """Names of the constraints the trajectory violates by more than tol (``violations``'
+        keys)."""
+        return {k for k, v in self.violations.items() if v > tol}
 
     @property
     def path_length(self) -> float:
