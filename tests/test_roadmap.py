@@ -202,6 +202,29 @@ def test_query_seed_is_valid(world, seeder):
     assert r.success and np.array_equal(r.path[-1], Q[1])
 
 
+def test_seeds_route_to_distinct_goal_ik_solutions(world, seeder):
+    Q = _free_configurations(world, 16, 11)
+    several = 0
+    for q0, qg in zip(Q[:8], Q[8:], strict=True):
+        T = world.robot.compute_ee_pose(qg)
+        found = seeder.seeds(q0, Goal.pose(T), 4)
+        first = seeder.seed(q0, Goal.pose(T))
+        assert found[0].success == first.success
+        if not first.success:
+            continue
+        assert np.array_equal(found[0].path, first.path)
+        ends = np.array([s.path[-1] for s in found])
+        assert len(found) <= 4
+        assert all(np.linalg.norm(a - b) > 0.1 for i, a in enumerate(ends) for b in ends[:i])
+        for s in found:
+            assert np.array_equal(s.path[0], q0)
+            assert world.fast.path_valid(s.path, seeder.resolution)
+            assert np.linalg.norm(world.robot.compute_ee_pose(s.path[-1])[:3, 3]
+                                  - T[:3, 3]) < 1e-3
+        several += len(found) > 1
+    assert several >= 2
+
+
 def test_dynamic_obstacle_on_the_shortest_path_reroutes(world, roadmap, seeder):
     rm = roadmap
     rng = np.random.default_rng(4)

@@ -156,6 +156,7 @@ class PlannerSpec:
             d["straight_line_first"] = p.straight_line_first
             d["straight_line_time_s"] = p.straight_line_time_s
             d["straight_line_fallback"] = p.straight_line_fallback
+            d["goal_routes"] = p.goal_routes
             d["seeder"] = asdict(p.seeder.config) if hasattr(p.seeder, "config") else {}
             d["trajopt"] = _trajopt_settings(p.config)
         elif isinstance(p, OmplPlanner | LazyPRM):

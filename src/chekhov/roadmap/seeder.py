@@ -30,7 +30,8 @@ class SeederConfig:
     """Query settings.
 
     Attributes:
-        n_goal_ik: distinct IK solutions wanted for a pose goal.
+        n_goal_ik: distinct IK solutions wanted for a pose goal (each a possible route end:
+            ``RoadmapTrajOpt.goal_routes``).
         ik_seeds: roadmap nodes (nearest end-effector pose to the goal) that seed the IK.
         ik_random_seeds, ik_random_rounds: random restarts per round, and rounds, tried only
             when the node seeds give no collision-free solution.
@@ -52,7 +53,7 @@ class SeederConfig:
         resolution: rad, motion check step; None: the roadmap's.
     """
 
-    n_goal_ik: int = 3
+    n_goal_ik: int = 6
     ik_seeds: int = 6
     ik_random_seeds: int = 32
     ik_random_rounds: int = 4
@@ -163,7 +164,15 @@ class RoadmapSeeder:
 
     # --- query --------------------------------------------------------------------------
     def seed(self, q_start: Array, goal: Goal) -> SeedResult:
-        """A seed path from q_start (K,) to the goal, avoiding the world's current obstacles."""
+        """A seed path from q_start (K,) to the goal, avoiding the world's current obstacles:
+        through the first goal IK solution that connects to the roadmap."""
+        return self.seeds(q_start, goal, 1)[0]
+
+    def seeds(self, q_start: Array, goal: Goal, n_routes: int) -> list[SeedResult]:
+        """Up to ``n_routes`` seed paths from q_start (K,) to the goal, each ending at another
+        of the pose goal's IK solutions (those that connect to the roadmap, in the order
+        :meth:`goal_configurations` gives them). On failure, one unsuccessful result.
+        ``timing_s`` is the whole query's, shared by all."""
         t0 = time.perf_counter()
         timing = {"ik": 0.0, "connect": 0.0, "search": 0.0, "validate": 0.0}
         robot, fast = self.world.robot, self.world.fast
@@ -171,10 +180,10 @@ class RoadmapSeeder:
         self.validity.refresh()
         checks0 = dict(self.validity.checks)
 
-        def fail(status: str, **info: object) -> SeedResult:
+        def fail(status: str, **info: object) -> list[SeedResult]:
             timing["total"] = time.perf_counter() - t0
-            return SeedResult(False, status, None, np.empty(0, dtype=np.int64), None, timing,
-                              dict(info))
+            return [SeedResult(False, status, None, np.empty(0, dtype=np.int64), None, timing,
+                               dict(info))]
 
         if not (robot.within_limits(q_start)[0] and fast.is_valid(q_start)):
             return fail("invalid_start", reason="start outside the limits or in collision")
@@ -193,22 +202,25 @@ class RoadmapSeeder:
             Q_goal = q_goal[None]
         t = time.perf_counter()
         starts = self.connector.connect(q_start)
-        goals: list[tuple[int, Connection]] = []
+        goals: list[list[tuple[int, Connection]]] = []
         if starts:
-            for gi, qg in enumerate(Q_goal):  # the first IK solution that connects
-                goals += [(gi, c) for c in self.connector.connect(qg)]
-                if goals:
-                    break
+            for gi, qg in enumerate(Q_goal):
+                g = [(gi, c) for c in self.connector.connect(qg)]
+                if g:
+                    goals.append(g)
+                    if len(goals) == n_routes:
+                        break
         timing["connect"] = time.perf_counter() - t
         if not starts or not goals:
             return fail("no_connection", side="start" if not starts else "goal")
-        result = self._route(q_start, Q_goal, starts, goals, timing)
+        found = [r for r in (self._route(q_start, Q_goal, starts, g, timing) for g in goals)
+                 if r is not None]
         timing["total"] = time.perf_counter() - t0
-        if result is None:
+        if not found:
             return fail("no_path", reason="dynamic obstacles cut every roadmap route tried")
-        path, nodes, q_goal, info = result
-        info["checks"] = {k: self.validity.checks[k] - checks0[k] for k in checks0}
-        return SeedResult(True, "solved", path, nodes, q_goal, timing, info)
+        checks = {k: self.validity.checks[k] - checks0[k] for k in checks0}
+        return [SeedResult(True, "solved", path, nodes, q_goal, timing,
+                           {**info, "checks": checks}) for path, nodes, q_goal, info in found]
 
     def _route(self, q_start: Array, Q_goal: Array, starts: list[Connection],
                goals: list[tuple[int, Connection]], timing: dict[str, float]
