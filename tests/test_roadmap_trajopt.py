@@ -92,3 +92,11 @@ def test_a_dynamic_obstacle_changes_the_answer_and_is_avoided(world, planner):
             assert after.path is None
     finally:
         world.remove_obstacle("person_arm")
+
+
+def test_an_exhausted_time_limit_is_a_timeout_not_an_answer(world, paper_planner):
+    cases = generate_cases(world, 1, seed=13)
+    r = paper_planner.plan(cases.q_start[0], cases.goal(0), time_limit_s=0.0)
+    assert not r.success and r.status == "timeout" and r.path is None
+    r = paper_planner.plan(cases.q_start[0], cases.goal(0), time_limit_s=30.0)
+    assert r.success

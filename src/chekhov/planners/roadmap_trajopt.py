@@ -58,6 +58,11 @@ class RoadmapTrajOpt:
     (``info["joint_goal_retry"]`` its status). Measured on the kitchen's 500 cases, with
     ``TrajOptConfig.accept_exact_clear``: 16 of 16 such cases then succeed.
 
+    ``time_limit_s`` bounds the optimisation: each TrajOpt run gets what is left of it (at
+    most its own ``config.time_limit_s``), and a query whose seed arrives after it ends with
+    status "timeout". Roadmap connection (its RRT at most ``SeederConfig.tree_time_s``) and the
+    exact validation of a result are not cut short.
+
     When the optimised trajectory fails the exact check, the (exactly checked) seed is returned
     with ``info["fallback_to_seed"] = True``; when that fails too, the result is a failure
     with status "collision". ``time_s`` includes the validation.
@@ -84,6 +89,7 @@ class RoadmapTrajOpt:
 
     def plan(self, q_start: Array, goal: Goal, time_limit_s: float = 10.0) -> PlanResult:
         t0 = time.perf_counter()
+        deadline = t0 + time_limit_s
         timing: dict[str, float] = {}
         if self.straight_line_first:
             try:  # the collision-free IK solution nearest the start: the shortest line
@@ -92,9 +98,9 @@ class RoadmapTrajOpt:
             except ChekhovError:
                 q_goal = None
             timing["straight_line"] = time.perf_counter() - t0
-            if q_goal is not None:
-                r0 = self._straight_line(q_start, goal, q_goal, "", t0, timing, {},
-                                         self.straight_line_time_s)
+            budget = min(self.straight_line_time_s, deadline - time.perf_counter())
+            if q_goal is not None and budget > 0:
+                r0 = self._straight_line(q_start, goal, q_goal, "", t0, timing, {}, budget)
                 if r0.success:
                     return r0
             timing["straight_line"] = time.perf_counter() - t0
@@ -105,9 +111,10 @@ class RoadmapTrajOpt:
         if not s.success or s.path is None:
             if self.straight_line_fallback and s.status in ("no_connection", "no_path"):
                 q_goal = self._goal_configuration(np.asarray(q_start, dtype=float), goal)
-                if q_goal is not None:
+                budget = min(self.fallback_time_s, deadline - time.perf_counter())
+                if q_goal is not None and budget > 0:
                     return self._straight_line(q_start, goal, q_goal, s.status, t0, timing,
-                                               s.info, self.fallback_time_s)
+                                               s.info, budget)
             return PlanResult(False, None, s.status, time.perf_counter() - t0, timing,
                               info={"seed_info": s.info})
         t1 = time.perf_counter()
@@ -119,7 +126,11 @@ class RoadmapTrajOpt:
         seed = resample_path(short, self.config.max_step_rad)
         if len(seed) < 2:
             seed = np.vstack([seed, seed])
-        cfg = self.config
+        remaining = deadline - time.perf_counter()
+        if remaining <= 0:
+            return PlanResult(False, None, "timeout", time.perf_counter() - t0, timing,
+                              seed=seed, info={"seed_info": s.info})
+        cfg = replace(self.config, time_limit_s=min(self.config.time_limit_s, remaining))
         try:
             problem = build_trajopt(self.world, q_start, goal, seed, cfg, self._distances)
         except ChekhovError as e:
@@ -129,12 +140,15 @@ class RoadmapTrajOpt:
         timing["optimise"] = r.optimise_s
         timing["validate"] = r.timing_s["validate"]
         retry = None
-        if r.status == "infeasible" and goal.is_pose and r.unmet() - {"collision_m"}:
+        if (r.status == "infeasible" and goal.is_pose and r.unmet() - {"collision_m"}
+                and time.perf_counter() < deadline):
             # the goal pose lost to the collision terms (its IK solution is near an obstacle):
             # again, with the seed's own end configuration, an IK solution of the pose, as goal
+            cfg_retry = replace(cfg, time_limit_s=min(self.config.time_limit_s,
+                                                      deadline - time.perf_counter()))
             retry = solve_trajopt(build_trajopt(self.world, q_start,
-                                                Goal.configuration(seed[-1]), seed, cfg,
-                                                self._distances))
+                                                Goal.configuration(seed[-1]), seed,
+                                                cfg_retry, self._distances))
             timing["optimise"] += retry.optimise_s
             timing["validate"] += retry.timing_s["validate"]
             if retry.success:
