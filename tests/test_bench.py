@@ -3,6 +3,7 @@ resumed without recomputation, OMPL's tables, CSV, summary JSON, report files, a
 results from a local Ray cluster as from local processes."""
 
 import csv
+import io
 import json
 import os
 import sqlite3
@@ -13,6 +14,7 @@ import pytest
 import chekhov.bench.runner as runner_mod
 from chekhov.bench.config import BenchConfig
 from chekhov.bench.database import BenchDatabase, pack_path, unpack_path
+from chekhov.bench.progress import ProgressBar
 from chekhov.bench.registry import PLANNER_NAMES, expand_planner_names
 from chekhov.bench.report import write_report
 from chekhov.bench.runner import run_benchmark
@@ -226,3 +228,17 @@ def test_seed_planner_run_is_shared_with_its_trajopt_run(tmp):
         assert alone["time"] == pytest.approx(seeded["timing"]["seed"], rel=1e-6)
         assert seeded["time"] >= alone["time"]
     assert rows[("RRTConnect", 0)]["info"]["seed_stage_of"] == "RRTConnect+TrajOpt"
+
+
+def test_progress_logs_every_tenth_and_at_least_every_interval_off_a_terminal():
+    out = io.StringIO()
+    bar = ProgressBar(100, "x", stream=out)
+    for _ in range(100):
+        bar.update()
+    lines = out.getvalue().splitlines()
+    assert len(lines) == 11 and lines[-1].startswith("x [") and "100/100" in lines[-1]
+    out = io.StringIO()
+    bar = ProgressBar(100, "x", stream=out, log_interval_s=0.0)
+    for _ in range(100):
+        bar.update(failed=True)
+    assert len(out.getvalue().splitlines()) == 100 and "(100 failed)" in out.getvalue()

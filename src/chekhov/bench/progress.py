@@ -1,4 +1,5 @@
-"""A progress bar with ETA on stderr (a redrawn line on a terminal, a line every ~10% else)."""
+"""A progress bar with ETA on stderr (a redrawn line on a terminal; else a line every ~10% of the
+work and at least every ``log_interval_s`` seconds, for logs of long runs)."""
 
 from __future__ import annotations
 
@@ -12,16 +13,18 @@ class ProgressBar:
 
     Args:
         total: units of work. label: shown before the bar. stream: default stderr.
-        enabled: False draws nothing.
+        enabled: False draws nothing. log_interval_s: most seconds between lines when the
+        stream is not a terminal.
     """
 
     def __init__(self, total: int, label: str = "bench", stream: TextIO | None = None,
-                 enabled: bool = True, width: int = 30) -> None:
+                 enabled: bool = True, width: int = 30, log_interval_s: float = 30.0) -> None:
         self.total = max(int(total), 0)
         self.label = label
         self.stream = stream if stream is not None else sys.stderr
         self.enabled = enabled and self.total > 0
         self.width = width
+        self.log_interval_s = log_interval_s
         self.done = 0
         self.failed = 0
         self.t0 = time.perf_counter()
@@ -42,8 +45,9 @@ class ProgressBar:
                 self.stream.flush()
         else:
             decile = (10 * self.done) // self.total
-            if decile != self._last_decile:
+            if decile != self._last_decile or now - self._last_draw >= self.log_interval_s:
                 self._last_decile = decile
+                self._last_draw = now
                 self.stream.write(self.line() + "\n")
                 self.stream.flush()
 
