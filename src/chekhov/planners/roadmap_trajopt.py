@@ -41,7 +41,7 @@ class RoadmapTrajOpt:
     to its optimum; ``info["roadmap_seed"]`` keeps the roadmap's own path.
 
     A pose goal has several IK solutions, and the route to each is a different seed: up to
-    ``goal_routes`` (default 6, up to ``SeederConfig.n_goal_ik``) of them are routed through
+    ``goal_routes`` (default 6) of them are routed through
     the roadmap and shortcut, and TrajOpt starts from the shortest (``info["goal_routes"]``
     how many were found). Measured on the kitchen's 95 report cases that straight-line TrajOpt
     fails: mean length 6.26 rad from one route, 5.62 from six, in the same time.

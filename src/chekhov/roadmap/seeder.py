@@ -30,8 +30,8 @@ class SeederConfig:
     """Query settings.
 
     Attributes:
-        n_goal_ik: distinct IK solutions wanted for a pose goal (each a possible route end:
-            ``RoadmapTrajOpt.goal_routes``).
+        n_goal_ik: distinct IK solutions wanted for a pose goal (:meth:`RoadmapSeeder.seeds`
+            asks for more when it is to route to more).
         ik_seeds: roadmap nodes (nearest end-effector pose to the goal) that seed the IK.
         ik_random_seeds, ik_random_rounds: random restarts per round, and rounds, tried only
             when the node seeds give no collision-free solution.
@@ -53,7 +53,7 @@ class SeederConfig:
         resolution: rad, motion check step; None: the roadmap's.
     """
 
-    n_goal_ik: int = 6
+    n_goal_ik: int = 3
     ik_seeds: int = 6
     ik_random_seeds: int = 32
     ik_random_rounds: int = 4
@@ -136,29 +136,34 @@ class RoadmapSeeder:
         self.kin.solve(np.eye(4), roadmap.nodes[:1], max_iterations=1)  # compile / load
 
     # --- goal ---------------------------------------------------------------------------
-    def goal_configurations(self, T_world_ee: Array) -> tuple[Array, str]:
-        """Collision-free IK solutions (n, K) of a goal pose seeded from the roadmap nodes
-        whose end-effector poses are nearest; ("", reason) on failure."""
+    def goal_configurations(self, T_world_ee: Array, n: int | None = None
+                            ) -> tuple[Array, str]:
+        """Up to n (default ``n_goal_ik``) distinct collision-free IK solutions (n, K) of a
+        goal pose, seeded from the roadmap nodes whose end-effector poses are nearest;
+        (empty, reason) on failure."""
         cfg = self.config
+        n = cfg.n_goal_ik if n is None else n
+        n_seeds = max(cfg.ik_seeds, n)
         T = np.asarray(T_world_ee, dtype=float)
-        # the 4·ik_seeds nearest end-effector positions, ranked by position (m) + 0.2 · angle
+        # the 4·n_seeds nearest end-effector positions, ranked by position (m) + 0.2 · angle
         seeds = self.roadmap.nodes[nearest_poses(self._ee_position, self._ee_rotation, T,
-                                                 4 * cfg.ik_seeds, cfg.ik_seeds)]
-        sols = self._free_ik(T, seeds)
+                                                 4 * n_seeds, n_seeds)]
+        sols = self._free_ik(T, seeds, n)
         rounds = 0
         while len(sols) == 0 and rounds < cfg.ik_random_rounds:
             if rounds == 0:
                 rng = np.random.default_rng(0)
             rounds += 1
-            sols = self._free_ik(T, self.world.robot.sample_uniform(rng, cfg.ik_random_seeds))
+            sols = self._free_ik(T, self.world.robot.sample_uniform(rng, cfg.ik_random_seeds),
+                                 n)
         if len(sols) == 0:
             return sols, (f"no collision-free IK solution from {cfg.ik_seeds} roadmap seeds "
                           f"and {rounds * cfg.ik_random_seeds} random ones")
-        return distinct_rows(sols, 0.1, cfg.n_goal_ik), ""
+        return distinct_rows(sols, 0.1, n), ""
 
-    def _free_ik(self, T: Array, seeds: Array) -> Array:
-        """Converged, collision-free solutions from the seeds (stops after n_goal_ik)."""
-        Q, ok = self.kin.solve(T, seeds, stop_after=self.config.n_goal_ik)
+    def _free_ik(self, T: Array, seeds: Array, n: int) -> Array:
+        """Converged, collision-free solutions from the seeds (stops after n)."""
+        Q, ok = self.kin.solve(T, seeds, stop_after=n)
         Q = Q[ok]
         return Q[self.world.fast.valid(Q)] if len(Q) else Q
 
@@ -190,7 +195,8 @@ class RoadmapSeeder:
         t = time.perf_counter()
         if goal.is_pose:
             assert goal.T_world_ee is not None
-            Q_goal, why = self.goal_configurations(goal.T_world_ee)
+            Q_goal, why = self.goal_configurations(goal.T_world_ee,
+                                                   max(self.config.n_goal_ik, n_routes))
             timing["ik"] = time.perf_counter() - t
             if len(Q_goal) == 0:
                 return fail("no_ik", reason=why)
