@@ -333,3 +333,17 @@ def test_nearest_poses_and_distinct_rows_match_numpy():
     Q = np.array([[0.0, 0], [0.05, 0], [0.2, 0], [0.21, 0.01], [1, 1]])
     np.testing.assert_array_equal(distinct_rows(Q, 0.1, 5), Q[[0, 2, 4]])
     np.testing.assert_array_equal(distinct_rows(Q, 0.1, 2), Q[[0, 2]])
+
+
+def test_last_resorts_are_only_for_a_connection_the_query_needs(world, seeder, monkeypatch):
+    con = seeder.connector
+    called: list[str] = []
+    monkeypatch.setattr(con, "direct", lambda *a, **k: [])
+    for name in ("_via_wrist", "_via_proximal", "_via_random", "_via_tree", "_wide"):
+        monkeypatch.setattr(con, name, lambda q, name=name: called.append(name) or [])
+    q = _free_configurations(world, 1, 3)[0]
+    assert con.connect(q, last_resorts=False) == []
+    assert called == ["_via_wrist", "_via_proximal", "_via_random"]
+    called.clear()
+    assert con.connect(q) == []
+    assert called == ["_via_wrist", "_via_proximal", "_via_random", "_via_tree", "_wide"]

@@ -96,15 +96,18 @@ class Connector:
             lo = hi
         return out[: self.config.max_connections]
 
-    def connect(self, q: Array) -> list[Connection]:
+    def connect(self, q: Array, last_resorts: bool = True) -> list[Connection]:
         """Free connections of q (K,) (known free) to the roadmap, cheapest first; empty when
-        there is none (the roadmap failure)."""
+        there is none (the roadmap failure). ``last_resorts`` False skips the tree and the
+        wide search (for a configuration the query can do without)."""
         found = [Connection(n, c, q[:0].reshape(0, len(q)), "direct")
                  for n, c in self.direct(q, self.config.connect_candidates)]
         if found or not self.config.bridges:
             return found
-        for attempt in (self._via_wrist, self._via_proximal, self._via_random, self._via_tree,
-                        self._wide):
+        attempts = [self._via_wrist, self._via_proximal, self._via_random]
+        if last_resorts:
+            attempts += [self._via_tree, self._wide]
+        for attempt in attempts:
             found = attempt(q)
             if found:
                 return sorted(found, key=lambda c: c.cost)

@@ -211,7 +211,8 @@ class RoadmapSeeder:
         goals: list[list[tuple[int, Connection]]] = []
         if starts:
             for gi, qg in enumerate(Q_goal):
-                g = [(gi, c) for c in self.connector.connect(qg)]
+                # once one goal connects, the others get no tree (up to tree_time_s each)
+                g = [(gi, c) for c in self.connector.connect(qg, last_resorts=not goals)]
                 if g:
                     goals.append(g)
                     if len(goals) == n_routes:
