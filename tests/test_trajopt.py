@@ -208,3 +208,10 @@ def test_sphere_clearance_shortfall_is_accepted_only_when_the_exact_check_passes
     assert r.status == "exact_clear" and r.success and r.valid
     assert r.unmet() == {"collision_m"}
     assert pole.exact.path_valid(r.trajectory, substeps=100)
+
+
+def test_within_cuts_the_time_limit_only_when_shorter():
+    cfg = TrajOptConfig(time_limit_s=2.0)
+    assert cfg.within(5.0) is cfg
+    assert cfg.within(0.5).time_limit_s == 0.5
+    assert cfg.within(0.5).substeps == cfg.substeps

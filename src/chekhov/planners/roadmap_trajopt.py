@@ -4,7 +4,6 @@ by TrajOpt, validated exactly. It never returns a trajectory the exact checker r
 from __future__ import annotations
 
 import time
-from dataclasses import replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -118,10 +117,10 @@ class RoadmapTrajOpt:
             return PlanResult(False, None, s.status, time.perf_counter() - t0, timing,
                               info={"seed_info": s.info})
         t1 = time.perf_counter()
-        shorts = [shortcut_path(self.world.fast, f.path) if self.shortcut else f.path
-                  for f in found if f.path is not None]
-        best = int(np.argmin([path_length(p) for p in shorts]))
-        s, short = found[best], shorts[best]
+        # every route of a successful query has a path; the shortest after shortcutting wins
+        s, short = min(((f, shortcut_path(self.world.fast, f.path) if self.shortcut
+                         else f.path) for f in found if f.path is not None),
+                       key=lambda route: path_length(route[1]))
         timing["shortcut"] = time.perf_counter() - t1
         seed = resample_path(short, self.config.max_step_rad)
         if len(seed) < 2:
@@ -130,7 +129,7 @@ class RoadmapTrajOpt:
         if remaining <= 0:
             return PlanResult(False, None, "timeout", time.perf_counter() - t0, timing,
                               seed=seed, info={"seed_info": s.info})
-        cfg = replace(self.config, time_limit_s=min(self.config.time_limit_s, remaining))
+        cfg = self.config.within(remaining)
         try:
             problem = build_trajopt(self.world, q_start, goal, seed, cfg, self._distances)
         except ChekhovError as e:
@@ -144,8 +143,7 @@ class RoadmapTrajOpt:
                 and time.perf_counter() < deadline):
             # the goal pose lost to the collision terms (its IK solution is near an obstacle):
             # again, with the seed's own end configuration, an IK solution of the pose, as goal
-            cfg_retry = replace(cfg, time_limit_s=min(self.config.time_limit_s,
-                                                      deadline - time.perf_counter()))
+            cfg_retry = self.config.within(deadline - time.perf_counter())
             retry = solve_trajopt(build_trajopt(self.world, q_start,
                                                 Goal.configuration(seed[-1]), seed,
                                                 cfg_retry, self._distances))
@@ -197,7 +195,7 @@ class RoadmapTrajOpt:
             "seed_kind": "straight_line", "roadmap_status": roadmap_status,
             "seed_info": seed_info, "fallback_to_seed": False}
         try:
-            cfg = replace(self.config, time_limit_s=min(self.config.time_limit_s, budget_s))
+            cfg = self.config.within(budget_s)
             problem = build_trajopt(self.world, q_start, goal, seed, cfg, self._distances)
         except ChekhovError as e:
             return PlanResult(False, None, roadmap_status, time.perf_counter() - t0, timing,

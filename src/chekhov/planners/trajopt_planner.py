@@ -102,8 +102,7 @@ def _optimise(world: World, config: TrajOptConfig, distances: TrajectoryDistance
               q_start: Array, goal: Goal, seed: Array, time_limit_s: float, t0: float,
               timing: dict[str, float]) -> PlanResult:
     """Run TrajOpt on a seed and wrap the outcome as a PlanResult."""
-    cfg = config if config.time_limit_s <= time_limit_s else _with_time_limit(config,
-                                                                              time_limit_s)
+    cfg = config.within(time_limit_s)
     try:
         problem = build_trajopt(world, q_start, goal, seed, cfg, distances)
     except ChekhovError as e:
@@ -119,8 +118,3 @@ def _optimise(world: World, config: TrajOptConfig, distances: TrajectoryDistance
               "trajopt_cpu_s": r.info["cpu_s"],
               "violations": r.violations, "trajectory": r.trajectory,
               "trajopt_timing_s": r.timing_s})
-
-
-def _with_time_limit(config: TrajOptConfig, time_limit_s: float) -> TrajOptConfig:
-    from dataclasses import replace
-    return replace(config, time_limit_s=time_limit_s)

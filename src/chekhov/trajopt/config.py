@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Literal
 
 
@@ -97,3 +97,7 @@ class TrajOptConfig:
     osqp_eps: float = 1e-2
     proximal_weight: float = 0.1
     osqp_rho: float = 10.0
+
+    def within(self, seconds: float) -> TrajOptConfig:
+        """This config with its time limit cut to ``seconds`` (s) when that is shorter."""
+        return self if self.time_limit_s <= seconds else replace(self, time_limit_s=seconds)
