@@ -135,7 +135,7 @@ class RoadmapSeeder:
         warm_up()
         self.kin.solve(np.eye(4), roadmap.nodes[:1], max_iterations=1)  # compile / load
         # compile (cold cache) or load every kernel of a query now, not in the first timed
-        # one: a pose query between two nodes (direct connections, so no random draws)
+        # one: a pose query between two nodes (whose ends normally connect directly)
         if roadmap.n_nodes >= 2:
             self.seeds(roadmap.nodes[0], Goal.pose(world.robot.compute_ee_pose(
                 roadmap.nodes[-1])), 2)
