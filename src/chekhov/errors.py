@@ -15,3 +15,16 @@ class SceneError(ChekhovError):
 
 class IKError(ChekhovError):
     """No joint configuration reaches the requested end-effector pose."""
+
+
+class CaseFileError(ChekhovError):
+    """A benchmark case file is missing, truncated, corrupt or of another scene (names the file)."""
+
+
+class PlanningInputError(ChekhovError):
+    """A planning query is malformed: wrong joint count, outside the joint limits, non-finite
+    values, a bad tolerance or time limit (the message names the argument and what was given)."""
+
+
+class BenchError(ChekhovError):
+    """The benchmark runner cannot go on (database locked too long, unwritable output …)."""
