@@ -28,3 +28,7 @@ class PlanningInputError(ChekhovError):
 
 class BenchError(ChekhovError):
     """The benchmark runner cannot go on (database locked too long, unwritable output …)."""
+
+
+class DeadlineError(ChekhovError):
+    """A stage ran out of its query's time limit (planners answer "timeout")."""

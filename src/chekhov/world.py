@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from functools import cached_property
 from pathlib import Path
 
@@ -62,7 +63,10 @@ class World:
                     and self.exact.is_valid(q))
 
     def solve_ik(self, T_world_ee: Array, n_solutions: int = 1, collision_free: bool = True,
-                 rng: np.random.Generator | None = None) -> Array:
-        """IK solutions (n, K) for a goal pose; collision-free (fast checker) by default."""
+                 rng: np.random.Generator | None = None, deadline: float = math.inf
+                 ) -> Array:
+        """IK solutions (n, K) for a goal pose; collision-free (fast checker) by default; no
+        restart after ``deadline`` (``time.perf_counter()`` value, s)."""
         return solve_ik(self.robot, T_world_ee, n_solutions, rng=rng,
-                        accept=self.fast.is_valid if collision_free else None)
+                        accept=self.fast.is_valid if collision_free else None,
+                        deadline=deadline)

@@ -117,24 +117,29 @@ def _buffers(K, spheres, groups, static, dyn, fixed, self_pairs):  # pragma: no 
 
 
 @njit(cache=True)
-def first_dense_collision(P, substeps, lever, chain, spheres, groups, static, dyn, fixed,
-                          fixed_csr, self_pairs, grids, gexact, rin
+def first_dense_collision(P, substeps, start, lever, chain, spheres, groups, static, dyn,
+                          fixed, fixed_csr, self_pairs, grids, gexact, rin
                           ):  # pragma: no cover - compiled
-    """Index of the first configuration of the densified path that the fast checker calls
-    colliding, or -1. The densified path has ``substeps`` configurations between each pair of
-    waypoints of P (T, K), waypoints included (the order of :func:`exact.densify`).
+    """Index (>= ``start``) of the first configuration of the densified path that the fast
+    checker calls colliding, or -1. The densified path has ``substeps`` configurations between
+    each pair of waypoints of P (T, K), waypoints included (the order of
+    :func:`exact.densify`); configurations before index ``start`` are not looked at.
     ``lever`` (G, K): bound on the distance (m) from joint i to group g's centre, 0 when joint
     i does not move the group."""
     T, K = P.shape
     work, until, puntil, step_len, q, Rc, pc, gwc = _buffers(K, spheres, groups, static, dyn,
                                                             fixed, self_pairs)
     n = substeps + 1
-    for t in range(T - 1):
-        m = _walk(P[t], P[t + 1], n, 0, n - 1, True, lever, chain, spheres, groups, static,
-                  dyn, fixed, fixed_csr, self_pairs, grids, gexact, rin, work, until, puntil,
-                  step_len, q, Rc, pc, gwc)
+    t_first = start // n
+    for t in range(t_first, T - 1):
+        m_first = start - t * n if t == t_first else 0
+        m = _walk(P[t], P[t + 1], n, m_first, n - 1, True, lever, chain, spheres, groups,
+                  static, dyn, fixed, fixed_csr, self_pairs, grids, gexact, rin, work, until,
+                  puntil, step_len, q, Rc, pc, gwc)
         if m >= 0:
             return t * n + m
+    if start > (T - 1) * n:
+        return -1
     m = _walk(P[T - 1], P[T - 1], 0, 0, 0, True, lever, chain, spheres, groups, static, dyn,
               fixed, fixed_csr, self_pairs, grids, gexact, rin, work, until, puntil, step_len,
               q, Rc, pc, gwc)

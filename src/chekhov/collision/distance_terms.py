@@ -16,6 +16,8 @@ grids): chain, spheres, groups, env obstacles, fixed robot parts, fixed pairs, s
 
 from __future__ import annotations
 
+import math
+import time
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -28,11 +30,15 @@ from chekhov.collision.kernels import (
     signed_distance_normal,
 )
 from chekhov.collision.primitives import bounding_radius
+from chekhov.errors import DeadlineError
 
 if TYPE_CHECKING:
     from chekhov.collision.fast import FastChecker
 
 Array = NDArray[np.float64]
+
+DEADLINE_CHUNK = 4
+"""Segments per compiled call when a deadline is to be kept (about 0.5–2.5 ms of work)."""
 
 _GOLDEN = 0.3819660112501051
 _NO_TERM = 1e3  # distance written to unused slots (m): the hinge is zero there
@@ -372,15 +378,24 @@ class TrajectoryDistances:
                        self._allowed, self._clusters, self._self_pairs, dist, grad)
         return dist, grad
 
-    def segments(self, Q: Array, margin: float, C: int) -> tuple[Array, Array, Array]:
+    def segments(self, Q: Array, margin: float, C: int, deadline: float = math.inf
+                 ) -> tuple[Array, Array, Array]:
         """Continuous (swept) terms of the segments of Q (T, K): dist (T-1, C) m and grad0 /
-        grad1 (T-1, C, K) m/rad with respect to each segment's first / second waypoint."""
+        grad1 (T-1, C, K) m/rad with respect to each segment's first / second waypoint.
+        With a finite ``deadline`` (``time.perf_counter()`` value, s) the segments go in
+        chunks of :data:`DEADLINE_CHUNK`, and :class:`DeadlineError` is raised between two
+        when it has passed."""
         Q = np.ascontiguousarray(Q, dtype=float)
         T, K = Q.shape
         dist = np.empty((T - 1, C))
         g0, g1 = np.empty((T - 1, C, K)), np.empty((T - 1, C, K))
         env, ebound = self._env()
-        segment_terms(Q, float(margin), int(C), self._chain, self._spheres, self._groups, env,
-                      ebound, self._fixed, self._fbound, self._allowed, self._clusters, dist,
-                      g0, g1)
+        step = T - 1 if math.isinf(deadline) else DEADLINE_CHUNK
+        for a in range(0, T - 1, max(step, 1)):
+            if time.perf_counter() > deadline:
+                raise DeadlineError("time limit reached while evaluating collision terms")
+            b = min(a + step, T - 1)
+            segment_terms(Q[a:b + 1], float(margin), int(C), self._chain, self._spheres,
+                          self._groups, env, ebound, self._fixed, self._fbound, self._allowed,
+                          self._clusters, dist[a:b], g0[a:b], g1[a:b])
         return dist, g0, g1

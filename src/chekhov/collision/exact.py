@@ -109,7 +109,13 @@ class ExactChecker:
         checking every densified configuration with :meth:`is_valid`, in order; a collision
         pair is only looked at again once the joint motion since its last coal distance could
         have closed that distance (conservative advancement, see ``advance.py``)."""
-        D = densify(path, substeps)
+        return self.first_collision_dense(densify(path, substeps))
+
+    def first_collision_dense(self, D: Array) -> int | None:
+        """Index of the first colliding configuration of the sequence D (N, K), or None:
+        :meth:`first_collision` on configurations already interpolated (consecutive rows
+        close together, so that the motion bound skips most of them)."""
+        D = np.atleast_2d(np.asarray(D, dtype=float))
         if D.shape[1] != self.robot.dof:
             raise RobotError(f"expected a path of shape (T, {self.robot.dof}), got {D.shape}")
         if self._weights is None:  # a joint the motion bound does not cover: one by one

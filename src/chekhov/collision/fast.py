@@ -273,12 +273,15 @@ class FastChecker:
         P = self._as_batch(path)
         return bool(self.valid(P).all() and self.motions_valid(P[:-1], P[1:], resolution).all())
 
-    def first_dense_collision(self, path: Array, substeps: int = 100) -> int | None:
-        """Index into ``densify(path, substeps)`` of the first configuration this checker calls
-        colliding, or None: the same answer as ``valid(densify(path, substeps))``, computed
-        with clearance certificates that skip most configurations (see ``dense_path.py``)."""
+    def first_dense_collision(self, path: Array, substeps: int = 100, start: int = 0
+                              ) -> int | None:
+        """Index (>= ``start``) into ``densify(path, substeps)`` of the first configuration
+        this checker calls colliding, or None: the same answer as
+        ``valid(densify(path, substeps)[start:])``, computed with clearance certificates that
+        skip most configurations (see ``dense_path.py``)."""
         P = self._as_batch(path)
-        i = dense_path.first_dense_collision(P, int(substeps), self._levers(), *self._args())
+        i = dense_path.first_dense_collision(P, int(substeps), int(start), self._levers(),
+                                             *self._args())
         return None if i < 0 else int(i)
 
     def _levers(self) -> Array:

@@ -1,10 +1,12 @@
-"""The planner interface every planner implements, its result, and path utilities."""
+"""The planner interface every planner implements, the base class that checks every query and
+certifies every answer in one place, and goal IK helpers."""
 
 from __future__ import annotations
 
+import math
 import time
-from dataclasses import dataclass, field
-from itertools import pairwise
+from abc import ABC, abstractmethod
+from dataclasses import replace
 from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
@@ -14,38 +16,23 @@ if TYPE_CHECKING:
     from chekhov.world import World
 
 from chekhov.errors import IKError
+from chekhov.paths import path_length, resample_path
+from chekhov.planners.certify import certify
+from chekhov.planners.query import PlanQuery, make_query
+from chekhov.planners.result import PlanResult
 from chekhov.robot.goal import Goal
 
 Array = NDArray[np.float64]
 
-
-@dataclass(frozen=True, eq=False)
-class PlanResult:
-    """What a planner returns.
-
-    Attributes:
-        success: a path was found that the planner's own checks accept.
-        path: waypoints (T, K), rad, first row the start; None on failure.
-        status: short machine-readable reason, e.g. "solved", "timeout", "no_ik",
-            "no_connection", "collision".
-        time_s: wall time of ``plan`` (s).
-        timing_s: breakdown of ``time_s`` by phase (s), e.g. {"ik": .., "seed": .., "optimise": ..}.
-        seed: the seed path (T', K) an optimising planner started from, when there was one.
-        info: anything else worth reporting (iterations, flags such as "fallback_to_seed").
-    """
-
-    success: bool
-    path: Array | None
-    status: str
-    time_s: float
-    timing_s: dict[str, float] = field(default_factory=dict)
-    seed: Array | None = None
-    info: dict[str, object] = field(default_factory=dict)
-
-    @property
-    def path_length(self) -> float:
-        """Joint-space length of the path (rad): sum of segment L2 norms; nan without a path."""
-        return path_length(self.path) if self.path is not None else float("nan")
+__all__ = [
+    "PlanResult",
+    "Planner",
+    "PlannerBase",
+    "goal_configurations",
+    "path_length",
+    "resample_path",
+    "solve_goal_ik",
+]
 
 
 class Planner(Protocol):
@@ -58,45 +45,70 @@ class Planner(Protocol):
         ...
 
 
-def path_length(path: Array) -> float:
-    """Sum of joint-space L2 segment lengths of a (T, K) path, rad."""
-    P = np.asarray(path, dtype=float)
-    return float(np.linalg.norm(np.diff(P, axis=0), axis=1).sum()) if len(P) > 1 else 0.0
+class PlannerBase(ABC):
+    """What every chekhov planner shares: :meth:`plan` checks the query
+    (:func:`~chekhov.planners.query.make_query`: a located
+    :class:`~chekhov.errors.PlanningInputError` for malformed input), answers "invalid_start" /
+    "invalid_goal" for ends in collision (the exact checker's decision), runs the planner's
+    :meth:`_plan` and certifies its answer (:func:`~chekhov.planners.certify.certify`: start,
+    joint limits, goal tolerance, exact collision check at 100 substeps, deadline). A
+    subclass implements :meth:`_plan` and sets ``name`` and ``world``."""
+
+    name: str
+    world: World
+
+    def plan(self, q_start: Array, goal: Goal, time_limit_s: float = 10.0) -> PlanResult:
+        """Plan from q_start (K,) rad to the goal within time_limit_s (s; inf for none)."""
+        query = make_query(self.world.robot, q_start, goal, time_limit_s)
+        query = replace(query, time_limit_s=self._budget_s(query.time_limit_s))
+        bad_end = self._end_in_collision(query)
+        if bad_end:
+            result = PlanResult(False, None, bad_end, 0.0,
+                                info={"error": f"{bad_end[8:]} configuration in collision"})
+        else:
+            result = self._plan(query)
+        return certify(self.world, query, result)
+
+    @abstractmethod
+    def _plan(self, query: PlanQuery) -> PlanResult:
+        """Answer a checked query (its ``deadline`` is the promise to keep)."""
+
+    def _budget_s(self, time_limit_s: float) -> float:
+        """The whole call's time limit (s) for a ``time_limit_s`` argument (the same, unless a
+        planner documents otherwise)."""
+        return time_limit_s
+
+    def _end_in_collision(self, query: PlanQuery) -> str:
+        """"invalid_start" / "invalid_goal" when that end configuration collides (the fast
+        checker, confirmed by the exact one), else ""."""
+        ends = [("invalid_start", query.q_start)]
+        if query.goal.q is not None:
+            ends.append(("invalid_goal", query.goal.q))
+        for status, q in ends:
+            if not self.world.fast.is_valid(q) and not self.world.exact.is_valid(q):
+                return status
+        return ""
 
 
-def resample_path(path: Array, max_step: float = 0.16) -> Array:
-    """The path (T, K) with each segment split evenly so that adjacent waypoints are at most
-    ``max_step`` rad apart (joint-space L2, the paper's 0.16 rad pre-processing). Waypoints of
-    the input are kept; repeated waypoints are dropped."""
-    P = np.atleast_2d(np.asarray(path, dtype=float))
-    out = [P[0]]
-    for a, b in pairwise(P):
-        d = float(np.linalg.norm(b - a))
-        if d < 1e-12:
-            continue
-        n = int(np.ceil(d / max_step - 1e-9))
-        for i in range(1, n + 1):
-            out.append(a + (b - a) * (i / n))
-    return np.array(out)
-
-
-def goal_configurations(world: World, goal: Goal, n_ik: int, rng: np.random.Generator
-                        ) -> Array:
+def goal_configurations(world: World, goal: Goal, n_ik: int, rng: np.random.Generator,
+                        deadline: float = math.inf) -> Array:
     """Goal configurations (n, K): ``goal.q``, or up to ``n_ik`` collision-free (fast checker)
-    IK solutions of ``goal.T_world_ee``. Raises :class:`IKError` when there is none."""
+    IK solutions of ``goal.T_world_ee`` (no IK restart after ``deadline``, a perf_counter
+    value). Raises :class:`IKError` when there is none."""
     if goal.q is not None:
         return world.robot.check_configuration(goal.q, "goal configuration")[None, :]
     assert goal.T_world_ee is not None
-    return world.solve_ik(goal.T_world_ee, n_solutions=n_ik, rng=rng)
+    return world.solve_ik(goal.T_world_ee, n_solutions=n_ik, rng=rng, deadline=deadline)
 
 
-def solve_goal_ik(world: World, goal: Goal, n_ik: int, rng: np.random.Generator, t0: float,
+def solve_goal_ik(world: World, query: PlanQuery, n_ik: int, rng: np.random.Generator,
                   timing: dict[str, float], info: dict[str, object]) -> Array | None:
-    """:func:`goal_configurations` for a sampling planner's query started at ``t0``: records
-    ``timing["ik"]`` (s) and ``info["ik_solutions"]`` (or ``info["error"]``); None when the
-    goal has no IK solution (the planner then answers "no_ik")."""
+    """:func:`goal_configurations` for a sampling planner's query: records ``timing["ik"]``
+    (s) and ``info["ik_solutions"]`` (or ``info["error"]``); None when the goal has no IK
+    solution before the deadline (the planner then answers "no_ik")."""
+    t0 = query.t0
     try:
-        goals = goal_configurations(world, goal, n_ik, rng)
+        goals = goal_configurations(world, query.goal, n_ik, rng, query.deadline)
     except IKError as e:
         timing["ik"] = time.perf_counter() - t0
         info["error"] = str(e)

@@ -39,8 +39,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from chekhov.planners.base import PlanResult, solve_goal_ik
-from chekhov.robot.goal import Goal
+from chekhov.planners.base import PlannerBase, PlanResult, solve_goal_ik
+from chekhov.planners.query import PlanQuery
 from chekhov.world import World
 
 Array = NDArray[np.float64]
@@ -80,7 +80,7 @@ class LazyPRMConfig:
     n_ik: int = 4
 
 
-class LazyPRM:
+class LazyPRM(PlannerBase):
     """LazyPRM planner (see the module docstring) for one world.
 
     ``node_valid(Q (N, K)) -> bool (N,)`` and ``edge_valid(Q0, Q1, resolution) -> bool (N,)``
@@ -102,21 +102,19 @@ class LazyPRM:
                          else 0.2 * float(np.linalg.norm(hi - lo)))
         _warm_up()
 
-    def plan(self, q_start: Array, goal: Goal, time_limit_s: float = 10.0) -> PlanResult:
-        """Plan from q_start (K,) rad to the goal within time_limit_s (s, IK included)."""
-        t0 = time.perf_counter()
-        deadline = t0 + time_limit_s
+    def _plan(self, query: PlanQuery) -> PlanResult:
+        """Plan for a checked query within its time limit (s, IK included)."""
+        t0, deadline, q_start = query.t0, query.deadline, query.q_start
         cfg, robot = self.config, self.world.robot
         timing: dict[str, float] = {}
         info: dict[str, object] = {"planner": self.name, **asdict(self.config),
                                    "max_edge": self.max_edge}
-        q_start = robot.check_configuration(q_start, "start configuration")
 
         def done(status: str, path: Array | None = None) -> PlanResult:
             return PlanResult(path is not None, path, status, time.perf_counter() - t0,
                               timing, info=info)
 
-        goals = solve_goal_ik(self.world, goal, cfg.n_ik, self.rng, t0, timing, info)
+        goals = solve_goal_ik(self.world, query, cfg.n_ik, self.rng, timing, info)
         if goals is None:
             return done("no_ik")
         if not (robot.within_limits(q_start)[0] and self.node_valid(q_start[None])[0]):

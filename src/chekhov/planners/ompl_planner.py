@@ -40,8 +40,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from chekhov.errors import ChekhovError
-from chekhov.planners.base import PlanResult, solve_goal_ik
-from chekhov.robot.goal import Goal
+from chekhov.planners.base import PlannerBase, PlanResult, solve_goal_ik
+from chekhov.planners.query import PlanQuery
 from chekhov.world import World
 
 Array = NDArray[np.float64]
@@ -62,7 +62,7 @@ def _ompl() -> tuple[Any, Any, Any]:
     return ob, og, ou
 
 
-class OmplPlanner:
+class OmplPlanner(PlannerBase):
     """One OMPL planner (``planner`` in RRTConnect, RRT, RRTstar, PRMstar) for one world.
 
     Args:
@@ -159,12 +159,11 @@ class OmplPlanner:
         return getattr(self._og, self.kind)(self.si)
 
     # --- planning -----------------------------------------------------------------------
-    def plan(self, q_start: Array, goal: Goal, time_limit_s: float = 10.0) -> PlanResult:
-        """Plan from q_start (K,) rad to the goal within time_limit_s (s, IK included)."""
+    def _plan(self, query: PlanQuery) -> PlanResult:
+        """Plan for a checked query within its time limit (s, IK included)."""
         ob = self._ob
-        t0 = time.perf_counter()
+        t0, q_start, time_limit_s = query.t0, query.q_start, query.time_limit_s
         robot = self.world.robot
-        q_start = robot.check_configuration(q_start, "start configuration")
         timing: dict[str, float] = {}
         info: dict[str, object] = {"planner": self.kind}
         c0 = dict(self.counts)
@@ -174,7 +173,7 @@ class OmplPlanner:
             return PlanResult(path is not None, path, status, time.perf_counter() - t0,
                               timing, info=info)
 
-        goals = solve_goal_ik(self.world, goal, self.n_ik, self.rng, t0, timing, info)
+        goals = solve_goal_ik(self.world, query, self.n_ik, self.rng, timing, info)
         if goals is None:
             return done("no_ik")
         if not (robot.within_limits(q_start)[0] and self.world.fast.is_valid(q_start)):

@@ -9,22 +9,24 @@ import numpy as np
 from numpy.typing import NDArray
 
 from chekhov.collision.distance_terms import TrajectoryDistances
+from chekhov.collision.path_check import PathCertificate
 from chekhov.errors import ChekhovError
-from chekhov.planners.base import PlanResult, path_length, resample_path
+from chekhov.planners.base import PlannerBase, PlanResult, path_length, resample_path
+from chekhov.planners.query import PlanQuery
 from chekhov.planners.shortcut import shortcut_path
 from chekhov.planners.trajopt_planner import TrajOptPlanner
 from chekhov.roadmap.graph import Roadmap
-from chekhov.roadmap.seeder import RoadmapSeeder, SeederConfig
+from chekhov.roadmap.seeder import RoadmapSeeder, SeederConfig, SeedResult
 from chekhov.robot.goal import Goal
 from chekhov.trajopt.config import TrajOptConfig
 from chekhov.trajopt.problem import build_trajopt, straight_line_seed
-from chekhov.trajopt.solver import solve_trajopt, validate_path
+from chekhov.trajopt.solver import solve_trajopt
 from chekhov.world import World
 
 Array = NDArray[np.float64]
 
 
-class RoadmapTrajOpt:
+class RoadmapTrajOpt(PlannerBase):
     """Roadmap + TrajOpt (Dai et al.): seed from the roadmap against the world's current
     obstacles (dynamic ones included), optimise, check exactly at 100 substeps per segment.
 
@@ -86,120 +88,147 @@ class RoadmapTrajOpt:
         self.goal_routes = goal_routes
         self._distances = TrajectoryDistances(world.fast)
 
-    def plan(self, q_start: Array, goal: Goal, time_limit_s: float = 10.0) -> PlanResult:
-        t0 = time.perf_counter()
-        deadline = t0 + time_limit_s
+    def _plan(self, query: PlanQuery) -> PlanResult:
         timing: dict[str, float] = {}
         if self.straight_line_first:
-            try:  # the collision-free IK solution nearest the start: the shortest line
-                q_goal = self._line_planner.goal_configuration(
-                    np.asarray(q_start, dtype=float), goal)
-            except ChekhovError:
-                q_goal = None
-            timing["straight_line"] = time.perf_counter() - t0
-            budget = min(self.straight_line_time_s, deadline - time.perf_counter())
-            if q_goal is not None and budget > 0:
-                r0 = self._straight_line(q_start, goal, q_goal, "", t0, timing, {}, budget)
-                if r0.success:
-                    return r0
-            timing["straight_line"] = time.perf_counter() - t0
+            first = self._straight_line_try(query, timing)
+            if first is not None and first.success:
+                return first
+        if query.expired():
+            return self._result(query, False, None, "timeout", timing)
         t_seed = time.perf_counter()
-        found = self.seeder.seeds(np.asarray(q_start, dtype=float), goal, self.goal_routes)
+        found = self.seeder.seeds(query.q_start, query.goal, self.goal_routes,
+                                  deadline=query.deadline)
         s = found[0]
         timing["seed"] = s.timing_s.get("total", time.perf_counter() - t_seed)
         if not s.success or s.path is None:
-            if self.straight_line_fallback and s.status in ("no_connection", "no_path"):
-                q_goal = self._goal_configuration(np.asarray(q_start, dtype=float), goal)
-                budget = min(self.fallback_time_s, deadline - time.perf_counter())
-                if q_goal is not None and budget > 0:
-                    return self._straight_line(q_start, goal, q_goal, s.status, t0, timing,
-                                               s.info, budget)
-            return PlanResult(False, None, s.status, time.perf_counter() - t0, timing,
-                              info={"seed_info": s.info})
+            return self._no_seed(query, s, timing)
         t1 = time.perf_counter()
         # every route of a successful query has a path; the shortest after shortcutting wins
-        s, short = min(((f, shortcut_path(self.world.fast, f.path) if self.shortcut
-                         else f.path) for f in found if f.path is not None),
-                       key=lambda route: path_length(route[1]))
+        s, short = min(((f, self._shortcut(f.path, query)) for f in found
+                        if f.path is not None), key=lambda route: path_length(route[1]))
         timing["shortcut"] = time.perf_counter() - t1
         seed = resample_path(short, self.config.max_step_rad)
         if len(seed) < 2:
             seed = np.vstack([seed, seed])
-        remaining = deadline - time.perf_counter()
-        if remaining <= 0:
-            return PlanResult(False, None, "timeout", time.perf_counter() - t0, timing,
-                              seed=seed, info={"seed_info": s.info})
-        cfg = self.config.within(remaining)
+        if query.expired():
+            return self._result(query, False, None, "timeout", timing, seed,
+                                {"seed_info": s.info})
+        return self._optimise_seed(query, s, seed, len(found), timing)
+
+    def _shortcut(self, path: Array, query: PlanQuery) -> Array:
+        return shortcut_path(self.world.fast, path, deadline=query.deadline) \
+            if self.shortcut else path
+
+    def _result(self, query: PlanQuery, success: bool, path: Array | None, status: str,
+                timing: dict[str, float], seed: Array | None = None,
+                info: dict[str, object] | None = None,
+                certificate: PathCertificate | None = None) -> PlanResult:
+        return PlanResult(success, path, status, time.perf_counter() - query.t0, timing,
+                          seed=seed, info=info if info is not None else {},
+                          certificate=certificate)
+
+    def _straight_line_try(self, query: PlanQuery, timing: dict[str, float]
+                           ) -> PlanResult | None:
+        """TrajOpt from a straight line to the collision-free IK solution nearest the start,
+        for at most ``straight_line_time_s``; None when there is no such IK solution."""
+        t0 = query.t0
         try:
-            problem = build_trajopt(self.world, q_start, goal, seed, cfg, self._distances)
+            q_goal = self._line_planner.goal_configuration(
+                query.q_start, query.goal,
+                deadline=min(query.deadline, t0 + self.straight_line_time_s))
+        except ChekhovError:
+            q_goal = None
+        timing["straight_line"] = time.perf_counter() - t0
+        budget = min(self.straight_line_time_s, query.remaining())
+        result = None
+        if q_goal is not None and budget > 0:
+            result = self._straight_line(query, q_goal, "", timing, {}, budget)
+        timing["straight_line"] = time.perf_counter() - t0
+        return result
+
+    def _no_seed(self, query: PlanQuery, s: SeedResult, timing: dict[str, float]
+                 ) -> PlanResult:
+        """The roadmap had no seed: a bounded straight-line TrajOpt when it could not connect
+        or dynamic obstacles cut its routes (``straight_line_fallback``), else the failure."""
+        if self.straight_line_fallback and s.status in ("no_connection", "no_path"):
+            q_goal = self._goal_configuration(query)
+            budget = min(self.fallback_time_s, query.remaining())
+            if q_goal is not None and budget > 0:
+                return self._straight_line(query, q_goal, s.status, timing, s.info, budget)
+        return self._result(query, False, None, s.status, timing, info={"seed_info": s.info})
+
+    def _optimise_seed(self, query: PlanQuery, s: SeedResult, seed: Array, n_routes: int,
+                       timing: dict[str, float]) -> PlanResult:
+        """TrajOpt from the roadmap seed (and once more towards the seed's end configuration
+        when a pose goal was lost to the collision terms); the seed itself when the optimised
+        trajectory fails the exact check."""
+        goal = query.goal
+        cfg = self.config.within(query.remaining())
+        try:
+            problem = build_trajopt(self.world, query.q_start, goal, seed, cfg, self._distances)
         except ChekhovError as e:
-            return PlanResult(False, None, "bad_problem", time.perf_counter() - t0, timing,
-                              seed=seed, info={"error": str(e)})
+            return self._result(query, False, None, "bad_problem", timing, seed,
+                                {"error": str(e)})
         r = solve_trajopt(problem)
         timing["optimise"] = r.optimise_s
         timing["validate"] = r.timing_s["validate"]
         retry = None
         if (r.status == "infeasible" and goal.is_pose and r.unmet() - {"collision_m"}
-                and time.perf_counter() < deadline):
+                and not query.expired()):
             # the goal pose lost to the collision terms (its IK solution is near an obstacle):
             # again, with the seed's own end configuration, an IK solution of the pose, as goal
-            cfg_retry = self.config.within(deadline - time.perf_counter())
-            retry = solve_trajopt(build_trajopt(self.world, q_start,
-                                                Goal.configuration(seed[-1]), seed,
-                                                cfg_retry, self._distances))
+            retry = solve_trajopt(build_trajopt(
+                self.world, query.q_start, Goal.configuration(seed[-1]), seed,
+                self.config.within(query.remaining()), self._distances))
             timing["optimise"] += retry.optimise_s
             timing["validate"] += retry.timing_s["validate"]
             if retry.success:
                 r = retry
         info: dict[str, object] = {"seed_kind": "roadmap", "roadmap_seed": s.path,
-                                   "goal_routes": len(found), "trajopt_status": r.status,
+                                   "goal_routes": n_routes, "trajopt_status": r.status,
                                    "iterations": r.iterations,
                                    "trajopt_cpu_s": r.info["cpu_s"],
                                    "trajectory": r.trajectory, "seed_info": s.info,
-                                   "optimised_valid": r.valid, "fallback_to_seed": False,
+                                   "optimised_valid": r.valid, "fallback_to_seed": not r.success,
                                    "trajopt_timing_s": r.timing_s,
                                    "joint_goal_retry": None if retry is None else retry.status}
         if r.success:
-            return PlanResult(True, r.trajectory, "solved", time.perf_counter() - t0, timing,
-                              seed=seed, info=info)
-        t1 = time.perf_counter()
-        seed_ok = validate_path(self.world, seed, "exact" if cfg.validate == "none" else
-                                cfg.validate, cfg.substeps)
-        timing["validate"] += time.perf_counter() - t1
-        if seed_ok:
-            info["fallback_to_seed"] = True
-            return PlanResult(True, seed, "solved", time.perf_counter() - t0, timing,
-                              seed=seed, info=info)
-        return PlanResult(False, None, "collision", time.perf_counter() - t0, timing, seed=seed,
-                          info=info)
+            return self._result(query, True, r.trajectory, "solved", timing, seed, info,
+                                r.certificate)
+        # the seed (fast-free, ends at an IK solution of the goal): the certification's exact
+        # check decides whether it is an answer
+        return self._result(query, True, seed, "solved", timing, seed, info)
 
-    def _goal_configuration(self, q_start: Array, goal: Goal) -> Array | None:
-        """The goal configuration, or the pose goal's IK solution nearest q_start."""
+    def _goal_configuration(self, query: PlanQuery) -> Array | None:
+        """The goal configuration, or the pose goal's IK solution nearest the start."""
+        goal = query.goal
         if goal.q is not None:
             return goal.q
         assert goal.T_world_ee is not None
-        Q, _ = self.seeder.goal_configurations(goal.T_world_ee)
+        Q, _ = self.seeder.goal_configurations(goal.T_world_ee, deadline=query.deadline)
         if len(Q) == 0:
             return None
-        return np.asarray(Q[int(np.argmin(np.linalg.norm(Q - q_start, axis=1)))])
+        return np.asarray(Q[int(np.argmin(np.linalg.norm(Q - query.q_start, axis=1)))])
 
-    def _straight_line(self, q_start: Array, goal: Goal, q_goal: Array, roadmap_status: str,
-                       t0: float, timing: dict[str, float], seed_info: dict[str, object],
+    def _straight_line(self, query: PlanQuery, q_goal: Array, roadmap_status: str,
+                       timing: dict[str, float], seed_info: dict[str, object],
                        budget_s: float) -> PlanResult:
         """TrajOpt from a straight line to q_goal for at most ``budget_s`` s of optimisation;
         never a colliding result (TrajOpt validates it). ``roadmap_status`` "" marks the
         first attempt, before the roadmap."""
-        seed = straight_line_seed(q_start, q_goal, self.config.n_waypoints)
+        seed = straight_line_seed(query.q_start, q_goal, self.config.n_waypoints)
         info: dict[str, object] = {
             "fallback": "straight_line" if roadmap_status else None,
             "seed_kind": "straight_line", "roadmap_status": roadmap_status,
             "seed_info": seed_info, "fallback_to_seed": False}
         try:
             cfg = self.config.within(budget_s)
-            problem = build_trajopt(self.world, q_start, goal, seed, cfg, self._distances)
+            problem = build_trajopt(self.world, query.q_start, query.goal, seed, cfg,
+                                    self._distances)
         except ChekhovError as e:
-            return PlanResult(False, None, roadmap_status, time.perf_counter() - t0, timing,
-                              info={**info, "error": str(e)})
+            return self._result(query, False, None, roadmap_status, timing,
+                                info={**info, "error": str(e)})
         r = solve_trajopt(problem)
         timing["optimise"] = r.optimise_s
         timing["validate"] = r.timing_s["validate"]
@@ -207,8 +236,6 @@ class RoadmapTrajOpt:
                      "trajopt_cpu_s": r.info["cpu_s"], "trajectory": r.trajectory,
                      "roadmap_seed": problem.seed, "optimised_valid": r.valid,
                      "trajopt_timing_s": r.timing_s})
-        if r.success:
-            return PlanResult(True, r.trajectory, "solved", time.perf_counter() - t0, timing,
-                              seed=problem.seed, info=info)
-        return PlanResult(False, None, roadmap_status, time.perf_counter() - t0, timing,
-                          seed=problem.seed, info=info)
+        return self._result(query, r.success, r.trajectory if r.success else None,
+                            "solved" if r.success else roadmap_status, timing, problem.seed,
+                            info, r.certificate)

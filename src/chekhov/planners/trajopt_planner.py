@@ -3,6 +3,7 @@ the seed (the paper's Table II combinations)."""
 
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
@@ -10,7 +11,8 @@ from numpy.typing import NDArray
 
 from chekhov.collision.distance_terms import TrajectoryDistances
 from chekhov.errors import ChekhovError
-from chekhov.planners.base import Planner, PlanResult
+from chekhov.planners.base import Planner, PlannerBase, PlanResult
+from chekhov.planners.query import PlanQuery
 from chekhov.robot.chain_kinematics import ChainKinematics
 from chekhov.robot.goal import Goal
 from chekhov.trajopt.config import TrajOptConfig
@@ -21,7 +23,7 @@ from chekhov.world import World
 Array = NDArray[np.float64]
 
 
-class TrajOptPlanner:
+class TrajOptPlanner(PlannerBase):
     """TrajOpt from a straight line of ``config.n_waypoints`` waypoints (default 30) to the
     collision-free IK solution of the goal pose nearest the start; the goal stays a pose
     constraint during the optimisation."""
@@ -38,37 +40,43 @@ class TrajOptPlanner:
             self._kinematics = None  # not a serial revolute chain: pinocchio IK
 
     def goal_configuration(self, q_start: Array, goal: Goal, n_seeds: int = 32,
-                           n_solutions: int = 6) -> Array:
+                           n_solutions: int = 6, deadline: float = math.inf) -> Array:
         """The goal configuration, or for a pose goal the collision-free IK solution nearest
         q_start: numba damped least squares from q_start and random seeds, stopping after
-        ``n_solutions`` converge. Raises ChekhovError when none is found."""
+        ``n_solutions`` converge; nothing new starts after ``deadline`` (``perf_counter``
+        value, s). Raises ChekhovError when none is found."""
         if goal.q is not None or self._kinematics is None:
-            return goal_configuration(self.world, q_start, goal)
+            return goal_configuration(self.world, q_start, goal, deadline=deadline)
         assert goal.T_world_ee is not None
         rng = np.random.default_rng(0)  # the same answer for the same query, every time
-        for _ in range(3):
+        for round_ in range(3):
+            if round_ and time.perf_counter() > deadline:
+                break
             seeds = np.vstack([q_start, self.world.robot.sample_uniform(rng, n_seeds)])
             Q, ok = self._kinematics.solve(goal.T_world_ee, seeds, stop_after=n_solutions)
             Q = Q[ok]
             Q = Q[self.world.fast.valid(Q)] if len(Q) else Q
             if len(Q):
                 return Q[int(np.argmin(np.linalg.norm(Q - q_start, axis=1)))]
-        return goal_configuration(self.world, q_start, goal)  # the slower, thorough search
+        if time.perf_counter() > deadline:
+            raise ChekhovError("goal pose: no collision-free IK solution before the time limit")
+        # the slower, thorough search
+        return goal_configuration(self.world, q_start, goal, deadline=deadline)
 
-    def plan(self, q_start: Array, goal: Goal, time_limit_s: float = 10.0) -> PlanResult:
-        t0 = time.perf_counter()
+    def _plan(self, query: PlanQuery) -> PlanResult:
+        t0, q_start, goal = query.t0, query.q_start, query.goal
         try:
-            q_goal = self.goal_configuration(np.asarray(q_start, dtype=float), goal)
+            q_goal = self.goal_configuration(q_start, goal, deadline=query.deadline)
         except ChekhovError as e:
             return PlanResult(False, None, "no_ik", time.perf_counter() - t0,
                               info={"error": str(e)})
         t_ik = time.perf_counter() - t0
         seed = straight_line_seed(q_start, q_goal, self.config.n_waypoints)
         return _optimise(self.world, self.config, self._distances, q_start, goal, seed,
-                         time_limit_s, t0, {"ik": t_ik})
+                         query.remaining(), t0, {"ik": t_ik})
 
 
-class SeededTrajOpt:
+class SeededTrajOpt(PlannerBase):
     """Any planner's path as the seed of TrajOpt (resampled to ≤ ``config.max_step_rad``).
 
     The seed planner gets ``time_limit_s``; TrajOpt then gets its own ``config.time_limit_s``
@@ -84,10 +92,14 @@ class SeededTrajOpt:
         self._distances = TrajectoryDistances(world.fast)
         self.last_seed_result: PlanResult | None = None
 
-    def plan(self, q_start: Array, goal: Goal, time_limit_s: float = 10.0) -> PlanResult:
-        t0 = time.perf_counter()
+    def _budget_s(self, time_limit_s: float) -> float:
+        return time_limit_s + self.config.time_limit_s
+
+    def _plan(self, query: PlanQuery) -> PlanResult:
+        t0, q_start, goal = query.t0, query.q_start, query.goal
         self.last_seed_result = None
-        seeded = self.seed_planner.plan(q_start, goal, time_limit_s)
+        seeded = self.seed_planner.plan(q_start, goal,
+                                        query.time_limit_s - self.config.time_limit_s)
         self.last_seed_result = seeded
         if not seeded.success or seeded.path is None:
             return PlanResult(False, None, f"seed_{seeded.status}", time.perf_counter() - t0,
@@ -95,7 +107,8 @@ class SeededTrajOpt:
         # TrajOpt gets its own budget (config.time_limit_s), as in the paper, where the two
         # stages' times add up: optimal seed planners use all of time_limit_s
         return _optimise(self.world, self.config, self._distances, q_start, goal, seeded.path,
-                         self.config.time_limit_s, t0, {"seed": seeded.time_s})
+                         min(self.config.time_limit_s, query.remaining()), t0,
+                         {"seed": seeded.time_s})
 
 
 def _optimise(world: World, config: TrajOptConfig, distances: TrajectoryDistances,
@@ -113,7 +126,7 @@ def _optimise(world: World, config: TrajOptConfig, distances: TrajectoryDistance
     return PlanResult(
         success=r.success, path=r.trajectory if r.success else None,
         status="solved" if r.success else r.status, time_s=time.perf_counter() - t0,
-        timing_s=timing, seed=problem.seed,
+        timing_s=timing, seed=problem.seed, certificate=r.certificate,
         info={"trajopt_status": r.status, "iterations": r.iterations,
               "trajopt_cpu_s": r.info["cpu_s"],
               "violations": r.violations, "trajectory": r.trajectory,

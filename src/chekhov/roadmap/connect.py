@@ -19,7 +19,9 @@ are tried, cheapest idea first:
 
 from __future__ import annotations
 
+import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -96,18 +98,23 @@ class Connector:
             lo = hi
         return out[: self.config.max_connections]
 
-    def connect(self, q: Array, last_resorts: bool = True) -> list[Connection]:
+    def connect(self, q: Array, last_resorts: bool = True, deadline: float = math.inf
+                ) -> list[Connection]:
         """Free connections of q (K,) (known free) to the roadmap, cheapest first; empty when
         there is none (the roadmap failure). ``last_resorts`` False skips the tree and the
-        wide search (for a configuration the query can do without)."""
+        wide search (for a configuration the query can do without). No attempt starts, and
+        the tree stops growing, after ``deadline`` (a ``time.perf_counter()`` value, s)."""
         found = [Connection(n, c, q[:0].reshape(0, len(q)), "direct")
                  for n, c in self.direct(q, self.config.connect_candidates)]
         if found or not self.config.bridges:
             return found
-        attempts = [self._via_wrist, self._via_proximal, self._via_random]
+        attempts: list[Callable[[Array], list[Connection]]] = [
+            self._via_wrist, self._via_proximal, self._via_random]
         if last_resorts:
-            attempts += [self._via_tree, self._wide]
+            attempts += [lambda q_: self._via_tree(q_, deadline), self._wide]
         for attempt in attempts:
+            if time.perf_counter() >= deadline:
+                break
             found = attempt(q)
             if found:
                 return sorted(found, key=lambda c: c.cost)
@@ -171,8 +178,9 @@ class Connector:
         return [Connection(n, c, q[:0].reshape(0, len(q)), "wide")
                 for n, c in self.direct(q, self.config.wide_candidates, batches=(32,))]
 
-    def _via_tree(self, q: Array) -> list[Connection]:
-        """Grow an RRT from q in batches; connect its new nodes straight to the roadmap."""
+    def _via_tree(self, q: Array, deadline: float = math.inf) -> list[Connection]:
+        """Grow an RRT from q in batches, for at most ``tree_time_s`` and not past
+        ``deadline``; connect its new nodes straight to the roadmap."""
         cfg = self.config
         robot, fast = self.world.robot, self.world.fast
         K = len(q)
@@ -180,7 +188,7 @@ class Connector:
         parent = [-1]
         _, targets = self.tree.query(q, k=min(64, self.roadmap.n_nodes))
         targets = np.atleast_1d(targets)
-        deadline = time.perf_counter() + cfg.tree_time_s
+        deadline = min(deadline, time.perf_counter() + cfg.tree_time_s)
         while len(tree) < cfg.tree_nodes and time.perf_counter() < deadline:
             T = np.array(tree)
             # half uniform samples (explore), half nearby roadmap nodes (head for the roadmap)

@@ -3,6 +3,7 @@ against the world's current obstacles (dynamic ones included)."""
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -141,11 +142,12 @@ class RoadmapSeeder:
                 roadmap.nodes[-1])), 2)
 
     # --- goal ---------------------------------------------------------------------------
-    def goal_configurations(self, T_world_ee: Array, n: int | None = None
-                            ) -> tuple[Array, str]:
+    def goal_configurations(self, T_world_ee: Array, n: int | None = None,
+                            deadline: float = math.inf) -> tuple[Array, str]:
         """Up to n (default ``n_goal_ik``) distinct collision-free IK solutions (n, K) of a
-        goal pose, seeded from the roadmap nodes whose end-effector poses are nearest;
-        (empty, reason) on failure."""
+        goal pose, seeded from the roadmap nodes whose end-effector poses are nearest (random
+        restart rounds only before ``deadline``, a perf_counter value); (empty, reason) on
+        failure."""
         cfg = self.config
         n = cfg.n_goal_ik if n is None else n
         n_seeds = max(cfg.ik_seeds, n)
@@ -155,7 +157,8 @@ class RoadmapSeeder:
                                                  4 * n_seeds, n_seeds)]
         sols = self._free_ik(T, seeds, n)
         rounds = 0
-        while len(sols) == 0 and rounds < cfg.ik_random_rounds:
+        while len(sols) == 0 and rounds < cfg.ik_random_rounds \
+                and time.perf_counter() < deadline:
             if rounds == 0:
                 rng = np.random.default_rng(0)
             rounds += 1
@@ -178,11 +181,13 @@ class RoadmapSeeder:
         through the first goal IK solution that connects to the roadmap."""
         return self.seeds(q_start, goal, 1)[0]
 
-    def seeds(self, q_start: Array, goal: Goal, n_routes: int) -> list[SeedResult]:
+    def seeds(self, q_start: Array, goal: Goal, n_routes: int, deadline: float = math.inf
+              ) -> list[SeedResult]:
         """Up to ``n_routes`` seed paths from q_start (K,) to the goal, each ending at another
         of the pose goal's IK solutions (those that connect to the roadmap, in the order
-        :meth:`goal_configurations` gives them). On failure, one unsuccessful result.
-        ``timing_s`` is the whole query's, shared by all."""
+        :meth:`goal_configurations` gives them). On failure, one unsuccessful result; status
+        "timeout" when ``deadline`` (a ``time.perf_counter()`` value, s) passed before an
+        answer. ``timing_s`` is the whole query's, shared by all."""
         t0 = time.perf_counter()
         timing = {"ik": 0.0, "connect": 0.0, "search": 0.0, "validate": 0.0}
         robot, fast = self.world.robot, self.world.fast
@@ -201,7 +206,7 @@ class RoadmapSeeder:
         if goal.is_pose:
             assert goal.T_world_ee is not None
             Q_goal, why = self.goal_configurations(goal.T_world_ee,
-                                                   max(self.config.n_goal_ik, n_routes))
+                                                   max(self.config.n_goal_ik, n_routes), deadline)
             timing["ik"] = time.perf_counter() - t
             if len(Q_goal) == 0:
                 return fail("no_ik", reason=why)
@@ -212,22 +217,29 @@ class RoadmapSeeder:
                 return fail("invalid_goal", reason="goal outside the limits or in collision")
             Q_goal = q_goal[None]
         t = time.perf_counter()
-        starts = self.connector.connect(q_start)
+        starts = self.connector.connect(q_start, deadline=deadline)
         goals: list[list[tuple[int, Connection]]] = []
         if starts:
             for gi, qg in enumerate(Q_goal):
+                if time.perf_counter() >= deadline:
+                    break
                 # once one goal connects, the others get no tree (up to tree_time_s each)
-                g = [(gi, c) for c in self.connector.connect(qg, last_resorts=not goals)]
+                g = [(gi, c) for c in self.connector.connect(qg, last_resorts=not goals,
+                                                             deadline=deadline)]
                 if g:
                     goals.append(g)
                     if len(goals) == n_routes:
                         break
         timing["connect"] = time.perf_counter() - t
+        if time.perf_counter() >= deadline:
+            return fail("timeout", reason="the time limit passed while connecting")
         if not starts or not goals:
             return fail("no_connection", side="start" if not starts else "goal")
-        found = [r for r in (self._route(q_start, Q_goal, starts, g, timing) for g in goals)
-                 if r is not None]
+        found = [r for r in (self._route(q_start, Q_goal, starts, g, timing, deadline)
+                             for g in goals) if r is not None]
         timing["total"] = time.perf_counter() - t0
+        if time.perf_counter() >= deadline:
+            return fail("timeout", reason="the time limit passed while routing")
         if not found:
             return fail("no_path", reason="dynamic obstacles cut every roadmap route tried")
         checks = {k: self.validity.checks[k] - checks0[k] for k in checks0}
@@ -235,7 +247,8 @@ class RoadmapSeeder:
                            {**info, "checks": checks}) for path, nodes, q_goal, info in found]
 
     def _route(self, q_start: Array, Q_goal: Array, starts: list[Connection],
-               goals: list[tuple[int, Connection]], timing: dict[str, float]
+               goals: list[tuple[int, Connection]], timing: dict[str, float],
+               deadline: float = math.inf
                ) -> tuple[Array, IntArray, Array, dict[str, object]] | None:
         rm = self.roadmap
         t = time.perf_counter()
@@ -248,10 +261,10 @@ class RoadmapSeeder:
         timing["search"] += time.perf_counter() - t
         for flat in order:
             si, gi = np.unravel_index(flat, total.shape)
-            if not np.isfinite(total[si, gi]):
+            if not np.isfinite(total[si, gi]) or time.perf_counter() >= deadline:
                 break
             sc, (qi, gc) = starts[si], goals[gi]
-            found = self._roadmap_path(sc.node, gc.node, timing)
+            found = self._roadmap_path(sc.node, gc.node, timing, deadline)
             if found is None:
                 continue
             nodes, rank = found
@@ -266,8 +279,8 @@ class RoadmapSeeder:
             return path[keep], nodes, q_goal, info
         return None
 
-    def _roadmap_path(self, s: int, g: int, timing: dict[str, float]
-                      ) -> tuple[IntArray, int] | None:
+    def _roadmap_path(self, s: int, g: int, timing: dict[str, float],
+                      deadline: float = math.inf) -> tuple[IntArray, int] | None:
         """Roadmap nodes s → g free of the current obstacles: the cached shortest path, else
         the next stored k shortest, else a lazy A* on the remaining graph (rank -1)."""
         rm, val = self.roadmap, self.validity
@@ -285,17 +298,19 @@ class RoadmapSeeder:
             for rank, p in enumerate(self.kpaths.paths(s, g)[1:], start=1):
                 if val.path_valid(p, path_edges(rm.indptr, rm.indices, rm.edge_id, p)):
                     return p, rank
-            lazy = self._lazy_search(s, g)
+            lazy = self._lazy_search(s, g, deadline)
             return None if lazy is None else (lazy, -1)
         finally:
             timing["validate"] += time.perf_counter() - t
 
-    def _lazy_search(self, s: int, g: int) -> IntArray | None:
+    def _lazy_search(self, s: int, g: int, deadline: float = math.inf) -> IntArray | None:
         """A* treating unchecked nodes and edges as free; check the found path, forbid what
         fails, repeat (LazyPRM). The heuristic is the static all-pairs distance to g."""
         rm, val = self.roadmap, self.validity
         h = rm.dist[:, g].astype(np.float64)
         for _ in range(self.config.lazy_iterations):
+            if time.perf_counter() >= deadline:
+                return None
             nodes, _ = astar(rm.indptr, rm.indices, rm.weights, rm.edge_id, s, g, h,
                              val.node_state != INVALID, val.edge_state != INVALID)
             if len(nodes) == 0:

@@ -23,12 +23,18 @@ class Goal:
     Attributes:
         position_tolerance: m, allowed end-effector position error (pose goals).
         orientation_tolerance: rad, allowed end-effector rotation error (pose goals).
+        joint_tolerance: rad, allowed error of any joint (configuration goals).
+
+    Every planner's answer is certified against these tolerances
+    (:func:`chekhov.planners.certify.certify`): a path whose last configuration misses the
+    goal is never reported as a success.
     """
 
     T_world_ee: Array | None = None
     q: Array | None = None
     position_tolerance: float = 0.005
     orientation_tolerance: float = 0.05
+    joint_tolerance: float = 1e-6
 
     def __post_init__(self) -> None:
         if (self.T_world_ee is None) == (self.q is None):
@@ -46,8 +52,11 @@ class Goal:
             if q.ndim != 1 or not np.all(np.isfinite(q)):
                 raise RobotError(f"goal configuration must be a finite vector, got {q}")
             object.__setattr__(self, "q", q)
-        if self.position_tolerance < 0 or self.orientation_tolerance < 0:
-            raise RobotError("goal tolerances must be non-negative")
+        for name in ("position_tolerance", "orientation_tolerance", "joint_tolerance"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)) \
+                    or not np.isfinite(value) or value < 0:
+                raise RobotError(f"goal {name}: expected a finite number >= 0, got {value!r}")
 
     @classmethod
     def pose(cls, T_world_ee: Array, position_tolerance: float = 0.005,
@@ -57,9 +66,10 @@ class Goal:
                    orientation_tolerance=orientation_tolerance)
 
     @classmethod
-    def configuration(cls, q: Array) -> Goal:
-        """A goal joint configuration q (K,), rad."""
-        return cls(q=q)
+    def configuration(cls, q: Array, joint_tolerance: float = 1e-6) -> Goal:
+        """A goal joint configuration q (K,), rad, met when every joint is within
+        ``joint_tolerance`` rad."""
+        return cls(q=q, joint_tolerance=joint_tolerance)
 
     @property
     def is_pose(self) -> bool:

@@ -6,6 +6,8 @@ restarts; joint limits are enforced by clamping after every step.
 
 from __future__ import annotations
 
+import math
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -41,12 +43,13 @@ class IKConfig:
 def solve_ik(robot: Robot, T_world_ee: Array, n_solutions: int = 1, *,
              q_seed: Array | None = None, rng: np.random.Generator | None = None,
              accept: Callable[[Array], bool] | None = None,
-             config: IKConfig = IKConfig()) -> Array:
+             config: IKConfig = IKConfig(), deadline: float = math.inf) -> Array:
     """Joint configurations reaching T_world_ee (4, 4): shape (n, K) with 1 ≤ n ≤ n_solutions.
 
     Distinct solutions come from random restarts (``q_seed`` first, if given). ``accept`` can
-    reject solutions (e.g. ``fast.is_valid`` for collision-free ones only). Raises
-    :class:`IKError` with the best residual when none is found.
+    reject solutions (e.g. ``fast.is_valid`` for collision-free ones only). No restart begins
+    after ``deadline`` (a ``time.perf_counter()`` value, s). Raises :class:`IKError` with the
+    best residual when none is found.
     """
     T_target = np.asarray(T_world_ee, dtype=float)
     if T_target.shape != (4, 4) or not np.all(np.isfinite(T_target)):
@@ -62,7 +65,11 @@ def solve_ik(robot: Robot, T_world_ee: Array, n_solutions: int = 1, *,
     solutions: list[Array] = []
     best_err = (np.inf, np.inf)
     rejected = 0
+    attempts = 0
     for attempt in range(config.max_restarts):
+        if attempt and time.perf_counter() > deadline:
+            break
+        attempts += 1
         q0 = (robot.check_configuration(q_seed, "q_seed") if attempt == 0 and q_seed is not None
               else rng.uniform(robot.lower, robot.upper))
         q, pos_err, rot_err = _descend(model, data, fid, target, q0, robot.lower, robot.upper,
@@ -84,7 +91,8 @@ def solve_ik(robot: Robot, T_world_ee: Array, n_solutions: int = 1, *,
         why = (f"{rejected} solution(s) rejected (e.g. in collision)" if rejected else
                f"best residual {best_err[0]:.4f} m, {best_err[1]:.4f} rad")
         raise IKError(f"no IK solution for end-effector position {np.round(p, 3).tolist()} "
-                      f"after {config.max_restarts} restarts: {why}")
+                      f"after {attempts} restarts: {why}"
+                      + (" (time limit reached)" if attempts < config.max_restarts else ""))
     return np.array(solutions)
 
 

@@ -7,6 +7,7 @@ to the goal configuration when the goal is one). ``build_trajopt`` returns a
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 
@@ -16,7 +17,7 @@ from numpy.typing import NDArray
 
 from chekhov.collision.distance_terms import TrajectoryDistances
 from chekhov.errors import ChekhovError, IKError, RobotError
-from chekhov.planners.base import resample_path
+from chekhov.paths import resample_path
 from chekhov.robot.goal import Goal
 from chekhov.robot.ik import solve_ik
 from chekhov.trajopt.config import TrajOptConfig
@@ -115,9 +116,12 @@ class TrajOptProblem:
         return np.repeat([g.position_tolerance, g.orientation_tolerance], 3) / np.sqrt(3.0)
 
     # --- evaluation ---------------------------------------------------------------------
-    def evaluate(self, Q: Array, timing: dict[str, float] | None = None) -> Evaluation:
+    def evaluate(self, Q: Array, timing: dict[str, float] | None = None,
+                 deadline: float = math.inf) -> Evaluation:
         """All terms and their derivatives at Q (T, K); seconds spent are added to
-        ``timing["collision"]`` (distance terms) and ``timing["linearise"]`` (the rest)."""
+        ``timing["collision"]`` (distance terms) and ``timing["linearise"]`` (the rest).
+        Raises :class:`~chekhov.errors.DeadlineError` when ``deadline`` (perf_counter, s)
+        passes during the collision terms."""
         cfg = self.config
         K = self.dof
         margin = cfg.check_distance_m
@@ -125,7 +129,7 @@ class TrajOptProblem:
         dw, gw = self.distances.waypoints(Q, margin, cfg.terms_per_waypoint,
                                           with_obstacles=not cfg.continuous)
         if cfg.continuous and len(Q) > 1:
-            ds, g0, g1 = self.distances.segments(Q, margin, cfg.terms_per_segment)
+            ds, g0, g1 = self.distances.segments(Q, margin, cfg.terms_per_segment, deadline)
             gs = np.concatenate([g0, g1], axis=2)
         else:
             ds, gs = np.empty((len(Q) - 1, 0)), np.empty((len(Q) - 1, 0, 2 * K))
@@ -251,16 +255,18 @@ def straight_line_seed(q_start: Array, q_goal: Array, n_waypoints: int) -> Array
 
 
 def goal_configuration(world: World, q_start: Array, goal: Goal, n_solutions: int = 4,
-                       rng: np.random.Generator | None = None) -> Array:
+                       rng: np.random.Generator | None = None, deadline: float = math.inf
+                       ) -> Array:
     """A configuration for the goal: the configuration itself, or the collision-free IK
-    solution of the goal pose closest to q_start. Raises TrajOptError when there is none."""
+    solution of the goal pose closest to q_start (no IK restart after ``deadline``, a
+    ``time.perf_counter()`` value). Raises TrajOptError when there is none."""
     if goal.q is not None:
         return goal.q
     assert goal.T_world_ee is not None
     try:
         Q = solve_ik(world.robot, goal.T_world_ee, n_solutions, q_seed=q_start,
                      rng=rng if rng is not None else np.random.default_rng(0),
-                     accept=world.fast.is_valid)
+                     accept=world.fast.is_valid, deadline=deadline)
     except IKError as e:
         raise TrajOptError(f"goal pose: {e}") from e
     return Q[int(np.argmin(np.linalg.norm(Q - q_start, axis=1)))]

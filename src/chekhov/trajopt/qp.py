@@ -225,11 +225,12 @@ class TrajOptQP:
         q = np.concatenate([-p.config.proximal_weight * x_bar, mu * self.slack_coeff])
         return vals[self._order], lo_, u, q
 
-    def solve(self, ev: Evaluation, x_bar: Array, trust: float, mu: float
-              ) -> tuple[Array, float, str]:
+    def solve(self, ev: Evaluation, x_bar: Array, trust: float, mu: float,
+              time_limit_s: float = 0.0) -> tuple[Array, float, str]:
         """Solve the QP linearised at ev (x_bar = ev.Q flattened): (x, model objective, status).
 
-        The model objective is ½ xᵀPx + μ Σ c s, i.e. the merit of the linearised problem."""
+        The model objective is ½ xᵀPx + μ Σ c s, i.e. the merit of the linearised problem.
+        ``time_limit_s`` > 0 bounds OSQP's ADMM iterations (s; 0: no bound)."""
         Ax, lo_, u, q = self._fill(ev, x_bar, trust, mu)
         relinearised = ev is not self._last_ev
         self._last_ev = ev
@@ -253,6 +254,7 @@ class TrajOptQP:
         if relinearised:  # start ADMM at the linearisation point and its violations
             z0 = np.concatenate([x_bar, np.maximum(self._residual_slacks(x_bar, lo_, u), 0.0)])
             self._solver.warm_start(x=z0)
+        self._solver.update_settings(time_limit=max(time_limit_s, 0.0))
         res = self._solver.solve(raise_error=False)
         self.admm_iterations += int(res.info.iter)
         x = res.x

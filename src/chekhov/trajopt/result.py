@@ -7,7 +7,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from chekhov.planners.base import path_length
+from chekhov.collision.path_check import PathCertificate
+from chekhov.paths import path_length
 
 Array = NDArray[np.float64]
 
@@ -21,10 +22,13 @@ class TrajOptResult:
         status: "converged", "iteration_limit", "exact_clear" (successes; the last: only the
             sphere model's clearance was short and the validation passed, see
             ``TrajOptConfig.accept_exact_clear``), "infeasible" (constraints still violated
-            after the last penalty increase) or "collision" (the validation found a collision:
-            never returned as a success).
+            after the last penalty increase), "collision" (the validation found a collision:
+            never returned as a success) or "timeout" (the time limit passed before the
+            validation decided).
         success: status is one of the successes above (the validation, where on, passed).
-        valid: result of the validation (None when validation is "none").
+        valid: result of the validation (None when validation is "none" or ran out of time).
+        certificate: the validation's proof that this trajectory is exactly collision-free
+            (:class:`~chekhov.collision.path_check.PathCertificate`), when it passed.
         costs: final values: "smoothness" (rad²), "merit".
         violations: final constraint violations: "collision_m" (largest hinge below
             min_clearance_m), "goal_position_m", "goal_orientation_rad", "velocity_rad",
@@ -42,6 +46,7 @@ class TrajOptResult:
     status: str
     success: bool
     valid: bool | None
+    certificate: PathCertificate | None
     costs: dict[str, float]
     violations: dict[str, float]
     iterations: int

@@ -10,11 +10,14 @@
 
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
 from numpy.typing import NDArray
 
+from chekhov.collision.path_check import PathCertificate, PathDecision, exact_path_decision
+from chekhov.errors import DeadlineError
 from chekhov.trajopt.problem import Evaluation, TrajOptProblem
 from chekhov.trajopt.qp import TrajOptQP, term_counts
 from chekhov.trajopt.result import TrajOptResult
@@ -38,7 +41,10 @@ def solve_trajopt(problem: TrajOptProblem) -> TrajOptResult:
     timing = {"collision": 0.0, "linearise": 0.0, "qp": 0.0, "validate": 0.0}
     T, K = problem.n_waypoints, problem.dof
     x = problem.seed.ravel().copy()
-    ev = problem.evaluate(problem.seed, timing)
+    try:
+        ev = problem.evaluate(problem.seed, timing, deadline)
+    except DeadlineError:
+        return _timed_out(problem, t_start, timing)
     qp = _sized_qp(problem, ev, None)
     rebuilds = 0
     mu = cfg.initial_penalty
@@ -59,15 +65,23 @@ def solve_trajopt(problem: TrajOptProblem) -> TrajOptResult:
                 if not qp.fits(ev):  # more terms than rows: a larger pattern, set up anew
                     qp = _sized_qp(problem, ev, qp)
                     rebuilds += 1
-                x_new, model, _ = qp.solve(ev, x, trust, mu)
+                x_new, model, _ = qp.solve(ev, x, trust, mu,
+                                           max(deadline - time.perf_counter(), 1e-5))
                 timing["qp"] += time.perf_counter() - t0
                 iterations += 1
+                if time.perf_counter() > deadline:   # no time left to evaluate the step
+                    out_of_budget = True
+                    break
                 approx = merit_old - model
                 if approx < cfg.min_approx_improve or \
                         approx < cfg.min_approx_improve_frac * abs(merit_old):
                     converged = True
                     break
-                ev_new = problem.evaluate(x_new.reshape(T, K), timing)
+                try:
+                    ev_new = problem.evaluate(x_new.reshape(T, K), timing, deadline)
+                except DeadlineError:
+                    out_of_budget = True
+                    break
                 exact = merit_old - problem.merit(ev_new, mu)
                 if exact > cfg.improve_ratio_threshold * approx:
                     x, ev = x_new, ev_new
@@ -91,16 +105,18 @@ def solve_trajopt(problem: TrajOptProblem) -> TrajOptResult:
     cpu_s = time.process_time() - cpu_start
     status = ("converged" if converged else "iteration_limit") if satisfied else "infeasible"
     valid: bool | None = None
+    certificate: PathCertificate | None = None
     t0 = time.perf_counter()
-    if satisfied and cfg.validate != "none":
-        valid = validate_path(problem.world, Q, cfg.validate, cfg.substeps)
-        if not valid:
-            status = "collision"
-    elif cfg.accept_exact_clear and cfg.validate != "none" and \
-            problem.unmet(ev) == {"collision_m"}:
+    clearance_only = cfg.accept_exact_clear and problem.unmet(ev) == {"collision_m"}
+    if cfg.validate != "none" and (satisfied or clearance_only):
         # short of the sphere model's margin only: the checker decides (config docstring)
-        valid = validate_path(problem.world, Q, cfg.validate, cfg.substeps)
-        if valid:
+        valid, certificate = validate_path(problem.world, Q, cfg.validate, cfg.substeps,
+                                           deadline)
+        if valid is None:
+            status = "timeout"
+        elif satisfied and not valid:
+            status = "collision"
+        elif not satisfied and valid:
             status = "exact_clear"
     timing["validate"] = time.perf_counter() - t0
     total = time.perf_counter() - t_start
@@ -108,7 +124,7 @@ def solve_trajopt(problem: TrajOptProblem) -> TrajOptResult:
     timing["total"] = total
     return TrajOptResult(
         trajectory=Q, status=status, success=status in SUCCESS,
-        valid=valid, costs={"smoothness": problem.smoothness(Q),
+        valid=valid, certificate=certificate, costs={"smoothness": problem.smoothness(Q),
                             "merit": problem.merit(ev, mu)},
         violations=problem.constraint_report(ev), iterations=iterations,
         penalty_increases=penalty_increases, timing_s=timing, seed=problem.seed,
@@ -116,20 +132,36 @@ def solve_trajopt(problem: TrajOptProblem) -> TrajOptResult:
               "admm_iterations": qp.admm_iterations})
 
 
-def validate_path(world: World, path: Array, mode: str = "exact", substeps: int = 100) -> bool:
+def validate_path(world: World, path: Array, mode: str = "exact", substeps: int = 100,
+                  deadline: float = math.inf) -> PathDecision:
     """Whether a path (T, K) is collision-free at its waypoints and ``substeps`` interpolated
-    configurations per segment (the paper's check).
+    configurations per segment (the paper's check): (True / False / None when ``deadline``, a
+    ``time.perf_counter()`` value, passed first, certificate).
 
-    "exact_full": the exact checker (pinocchio + coal) on every configuration. "exact": the
-    same decision, faster: the fast checker first looks at the same configurations and, since
-    its spheres contain the robot's collision geometry (fast free ⇒ exact free), the exact
-    checker runs only when the fast one reports a collision. "fast": the fast checker alone.
+    "exact": the exact checker's decision, fast: the fast checker screens the same
+    configurations and, since its spheres contain the robot's collision geometry (fast free ⇒
+    exact free), coal runs only on its alarms
+    (:func:`chekhov.collision.path_check.exact_path_decision`; only this mode leaves a
+    certificate). "exact_full": the exact checker on every configuration. "fast": the fast
+    checker alone (conservative).
     """
+    if mode == "exact":
+        return exact_path_decision(world.fast, world.exact, path, substeps, deadline)
     if mode == "exact_full":
-        return world.exact.path_valid(path, substeps=substeps)
-    if world.fast.dense_path_valid(path, substeps):
-        return True
-    return mode == "exact" and world.exact.path_valid(path, substeps=substeps)
+        return PathDecision(world.exact.path_valid(path, substeps=substeps), None)
+    return PathDecision(world.fast.dense_path_valid(path, substeps), None)
+
+
+def _timed_out(problem: TrajOptProblem, t_start: float, timing: dict[str, float]
+               ) -> TrajOptResult:
+    """The result when the time limit passed before the seed was even evaluated."""
+    timing["total"] = time.perf_counter() - t_start
+    return TrajOptResult(
+        trajectory=problem.seed.copy(), status="timeout", success=False, valid=None,
+        certificate=None, costs={}, violations={}, iterations=0, penalty_increases=0,
+        timing_s=timing, seed=problem.seed, info={"cpu_s": 0.0, "penalty": 0.0,
+                                                  "trust_rad": 0.0, "qp_rebuilds": 0,
+                                                  "admm_iterations": 0})
 
 
 def _sized_qp(problem: TrajOptProblem, ev: Evaluation, old: TrajOptQP | None) -> TrajOptQP:

@@ -1,0 +1,128 @@
+"""The one place where a planner's answer becomes a success: :func:`certify`.
+
+Every planner's result passes through it (:class:`chekhov.planners.base.PlannerBase`). A path
+is certified when
+
+* it is a finite (T >= 1, K) array whose first row is the (checked) start,
+* every waypoint lies within the joint limits (to 1e-9 rad),
+* its last configuration meets the goal within the goal's tolerances — a pose goal by forward
+  kinematics (position error ≤ ``position_tolerance`` m, rotation angle ≤
+  ``orientation_tolerance`` rad), a configuration goal joint by joint (≤ ``joint_tolerance``),
+* it is collision-free at its waypoints and :data:`SUBSTEPS` interpolated configurations per
+  segment by the exact checker's decision
+  (:func:`chekhov.collision.path_check.exact_path_decision`: the conservative fast checker
+  first, coal on its alarms) — unless the result carries that function's certificate for
+  this very path, substeps and obstacle version (a planner that already ran it), and
+* it arrived by the deadline: a path found after ``time_limit_s`` is a "timeout". The
+  certification's own time (``timing_s["certify"]``) counts; it runs only on a found path.
+
+An answer that fails keeps its path in ``info["rejected_path"]`` and gets the status of the
+first failed check ("bad_path", "start_mismatch", "joint_limits", "goal_unmet", "collision",
+"timeout"), with ``info["certificate"]`` saying why.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from chekhov.collision.path_check import PathCertificate, exact_path_decision
+from chekhov.planners.result import PlanResult
+from chekhov.transforms import rotation_angle
+
+if TYPE_CHECKING:
+    from chekhov.planners.query import PlanQuery
+    from chekhov.world import World
+
+Array = NDArray[np.float64]
+
+SUBSTEPS = 100
+"""Interpolated configurations per segment in the collision check (the paper's 100)."""
+
+START_TOLERANCE_RAD = 1e-6
+LIMIT_TOLERANCE_RAD = 1e-9
+GOAL_SLACK = 1e-6
+"""Added to a goal's tolerances (m, rad) for floating-point round-off in the check."""
+
+
+def certify(world: World, query: PlanQuery, result: PlanResult) -> PlanResult:
+    """``result`` if it is a failure or a certified success; otherwise the same result as a
+    failure with the status of the first failed check (module docstring)."""
+    if not result.success:
+        return _finish(result, query, None, 0.0)
+    t = time.perf_counter()
+    why = path_problem(world, query, result.path, result.certificate)
+    status = why[0] if why else ""
+    if not why and time.perf_counter() > query.deadline:
+        status, why = "timeout", ("timeout", "the path was found after the time limit")
+    return _finish(result, query, why, time.perf_counter() - t, status)
+
+
+def path_problem(world: World, query: PlanQuery, path: Array | None,
+                 certificate: PathCertificate | None = None) -> tuple[str, str] | None:
+    """(status, reason) of the first check ``path`` fails for ``query``; None when it passes.
+    A ``certificate`` that covers the path stands for the collision check."""
+    robot = world.robot
+    P = None if path is None else np.asarray(path, dtype=float)
+    if P is None or P.ndim != 2 or P.shape[1] != robot.dof or len(P) == 0 \
+            or not np.all(np.isfinite(P)):
+        shape = None if P is None else P.shape
+        return "bad_path", f"expected a finite (T >= 1, {robot.dof}) path, got {shape}"
+    if np.abs(P[0] - query.q_start).max() > START_TOLERANCE_RAD:
+        return "start_mismatch", "the path does not begin at the start configuration"
+    inside = robot.within_limits(P, LIMIT_TOLERANCE_RAD)
+    if not inside.all():
+        return "joint_limits", f"waypoint {int(np.argmin(inside))} is outside the joint limits"
+    unmet = goal_error(world, query, P[-1])
+    if unmet:
+        return "goal_unmet", unmet
+    if certificate is not None and certificate.covers(P, SUBSTEPS, world.fast):
+        return None
+    valid, _ = exact_path_decision(world.fast, world.exact, P, SUBSTEPS, query.deadline)
+    if valid is None:
+        return "timeout", "the time limit passed during the collision check"
+    if not valid:
+        return "collision", f"in collision at {SUBSTEPS} substeps per segment (exact checker)"
+    return None
+
+
+def goal_error(world: World, query: PlanQuery, q: Array) -> str:
+    """Why ``q`` (K,) misses the query's goal ("" when it meets it within tolerance)."""
+    goal = query.goal
+    if goal.q is not None:
+        err = float(np.abs(q - goal.q).max())
+        if err > goal.joint_tolerance + GOAL_SLACK:
+            return f"last configuration {err:.3g} rad from the goal (tolerance " \
+                   f"{goal.joint_tolerance:g})"
+        return ""
+    assert goal.T_world_ee is not None
+    T = world.robot.compute_ee_pose(q)
+    dp = float(np.linalg.norm(T[:3, 3] - goal.T_world_ee[:3, 3]))
+    da = rotation_angle(T[:3, :3], goal.T_world_ee[:3, :3])
+    if dp > goal.position_tolerance + GOAL_SLACK or da > goal.orientation_tolerance + GOAL_SLACK:
+        return (f"end effector {dp * 1000:.2f} mm / {da:.4f} rad from the goal pose "
+                f"(tolerance {goal.position_tolerance * 1000:g} mm / "
+                f"{goal.orientation_tolerance:g} rad)")
+    return ""
+
+
+def _finish(result: PlanResult, query: PlanQuery, why: tuple[str, str] | None,
+            certify_s: float, status: str = "") -> PlanResult:
+    """The result with ``time_s`` from the query's start, the certification's time and, when
+    it failed, its reason."""
+    timing = {**result.timing_s, "certify": certify_s}
+    info = dict(result.info)
+    if query.clamped:
+        info["clamped"] = query.clamped
+    if result.success:
+        info["certificate"] = "certified" if why is None else why[1]
+    now = time.perf_counter()
+    if why is None:
+        return replace(result, time_s=now - query.t0, timing_s=timing, info=info)
+    info["rejected_path"] = result.path
+    return replace(result, success=False, path=None, status=status, time_s=now - query.t0,
+                   timing_s=timing, info=info)
