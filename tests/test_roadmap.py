@@ -340,7 +340,7 @@ def test_last_resorts_are_only_for_a_connection_the_query_needs(world, seeder, m
     called: list[str] = []
     monkeypatch.setattr(con, "direct", lambda *a, **k: [])
     for name in ("_via_wrist", "_via_proximal", "_via_random", "_via_tree", "_wide"):
-        monkeypatch.setattr(con, name, lambda q, name=name: called.append(name) or [])
+        monkeypatch.setattr(con, name, lambda q, *_, name=name, **__: called.append(name) or [])
     q = _free_configurations(world, 1, 3)[0]
     assert con.connect(q, last_resorts=False) == []
     assert called == ["_via_wrist", "_via_proximal", "_via_random"]

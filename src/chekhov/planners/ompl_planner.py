@@ -21,7 +21,9 @@ How each is configured (the same for all four, apart from the objective):
   ``PathSimplifier.simplify`` (shortcutting, vertex reduction, B-spline smoothing under the same
   motion check) for at most ``simplify_time_s``, timed separately.
 
-``time_limit_s`` bounds the whole ``plan`` call: IK first, then the planner gets the rest.
+``time_limit_s`` bounds the whole ``plan`` call: IK first, then the planner gets the rest but
+a reserve (5% of it, at most 50 ms) for the certification of its path (RRT* and PRM* stop
+that much before the limit).
 Approximate solutions count as failures ("timeout").
 
 PRM* and several goals: OMPL's PRM checks for solutions in a second C++ thread which, with
@@ -50,6 +52,9 @@ PLANNERS = ("RRTConnect", "RRT", "RRTstar", "PRMstar")
 _ALIASES = {"rrtconnect": "RRTConnect", "rrt": "RRT", "rrtstar": "RRTstar", "rrt*": "RRTstar",
             "prmstar": "PRMstar", "prm*": "PRMstar"}
 OPTIMAL = frozenset({"RRTstar", "PRMstar"})
+CERTIFY_RESERVE = 0.05
+"""Share of the remaining time kept back from OMPL's solve for certifying the path."""
+CERTIFY_RESERVE_MAX_S = 0.05
 
 
 def _ompl() -> tuple[Any, Any, Any]:
@@ -197,7 +202,9 @@ class OmplPlanner(PlannerBase):
                 planner.solve(ob.plannerAlwaysTerminatingCondition())
         timing["setup"] = time.perf_counter() - t
         t = time.perf_counter()
+        # leave time for the path's certification: an answer after the limit is a timeout
         remaining = t0 + time_limit_s - t
+        remaining -= min(CERTIFY_RESERVE * remaining, CERTIFY_RESERVE_MAX_S)
         status = planner.solve(max(remaining, 1e-6)) if remaining > 0 else None
         timing["solve"] = time.perf_counter() - t
         info["ompl_status"] = status.asString() if status is not None else "not run"
@@ -210,6 +217,8 @@ class OmplPlanner(PlannerBase):
         if self.simplify:
             t = time.perf_counter()
             simplifier = self._og.PathSimplifier(self.si, gs)
-            simplifier.simplify(path, self.simplify_time_s)
+            budget = min(self.simplify_time_s, query.remaining() * (1 - CERTIFY_RESERVE))
+            if budget > 0:
+                simplifier.simplify(path, budget)
             timing["simplify"] = time.perf_counter() - t
         return done("solved", self._path_array(path))

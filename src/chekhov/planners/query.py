@@ -35,7 +35,7 @@ class PlanQuery:
     Attributes:
         q_start: (K,) rad, within the joint limits.
         goal: the goal; a configuration goal's ``q`` within the joint limits.
-        time_limit_s: s, > 0 (inf: no limit).
+        time_limit_s: s, >= 0 (inf: no limit; 0: answer "timeout" at once).
         t0: ``time.perf_counter()`` when the query was made (s).
         clamped: which of "start" / "goal" were clamped onto the limits (within the tolerance).
     """
@@ -62,7 +62,7 @@ class PlanQuery:
 def make_query(robot: Robot, q_start: object, goal: object, time_limit_s: object) -> PlanQuery:
     """Check a planning query for ``robot``; raises :class:`PlanningInputError` naming the
     argument (wrong length, non-finite, outside the joint limits, not a :class:`Goal`, a
-    time limit that is not a positive number)."""
+    time limit that is NaN or negative)."""
     t0 = time.perf_counter()
     limit = _time_limit(time_limit_s)
     if not isinstance(goal, Goal):
@@ -84,9 +84,9 @@ def _time_limit(value: object) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
         raise PlanningInputError(f"time_limit_s: expected a number of seconds, got {value!r}")
     limit = float(value)
-    if math.isnan(limit) or limit <= 0:
+    if math.isnan(limit) or limit < 0:
         raise PlanningInputError(
-            f"time_limit_s: expected a positive number of seconds (inf for none), got {limit}")
+            f"time_limit_s: expected a number of seconds >= 0 (inf for none), got {limit}")
     return limit
 
 

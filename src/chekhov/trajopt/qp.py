@@ -254,7 +254,7 @@ class TrajOptQP:
         if relinearised:  # start ADMM at the linearisation point and its violations
             z0 = np.concatenate([x_bar, np.maximum(self._residual_slacks(x_bar, lo_, u), 0.0)])
             self._solver.warm_start(x=z0)
-        self._solver.update_settings(time_limit=max(time_limit_s, 0.0))
+        self._solver.update_settings(time_limit=time_limit_s if time_limit_s > 0 else 1e10)
         res = self._solver.solve(raise_error=False)
         self.admm_iterations += int(res.info.iter)
         x = res.x
