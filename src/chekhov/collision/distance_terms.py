@@ -37,8 +37,11 @@ if TYPE_CHECKING:
 
 Array = NDArray[np.float64]
 
-DEADLINE_CHUNK = 4
-"""Segments per compiled call when a deadline is to be kept (about 0.5–2.5 ms of work)."""
+DEADLINE_CHUNK_S = 5e-4
+"""s: work per compiled call when a deadline is to be kept (the first call takes one segment,
+the next ones as many as the time per segment so far says fit, at most twice the last and
+:data:`DEADLINE_CHUNK_MAX`: segments of one path differ in cost by 30x and more)."""
+DEADLINE_CHUNK_MAX = 2
 
 _GOLDEN = 0.3819660112501051
 _NO_TERM = 1e3  # distance written to unused slots (m): the hinge is zero there
@@ -383,19 +386,24 @@ class TrajectoryDistances:
         """Continuous (swept) terms of the segments of Q (T, K): dist (T-1, C) m and grad0 /
         grad1 (T-1, C, K) m/rad with respect to each segment's first / second waypoint.
         With a finite ``deadline`` (``time.perf_counter()`` value, s) the segments go in
-        chunks of :data:`DEADLINE_CHUNK`, and :class:`DeadlineError` is raised between two
-        when it has passed."""
+        chunks of about :data:`DEADLINE_CHUNK_S` of work, and :class:`DeadlineError` is raised
+        between two when it has passed."""
         Q = np.ascontiguousarray(Q, dtype=float)
         T, K = Q.shape
         dist = np.empty((T - 1, C))
         g0, g1 = np.empty((T - 1, C, K)), np.empty((T - 1, C, K))
         env, ebound = self._env()
-        step = T - 1 if math.isinf(deadline) else DEADLINE_CHUNK
-        for a in range(0, T - 1, max(step, 1)):
+        a, step = 0, T - 1 if math.isinf(deadline) else 1
+        while a < T - 1:
             if time.perf_counter() > deadline:
                 raise DeadlineError("time limit reached while evaluating collision terms")
             b = min(a + step, T - 1)
+            t = time.perf_counter()
             segment_terms(Q[a:b + 1], float(margin), int(C), self._chain, self._spheres,
                           self._groups, env, ebound, self._fixed, self._fbound, self._allowed,
                           self._clusters, dist[a:b], g0[a:b], g1[a:b])
+            per_segment = (time.perf_counter() - t) / (b - a)
+            step = max(1, min(2 * step, DEADLINE_CHUNK_MAX,
+                              int(DEADLINE_CHUNK_S / max(per_segment, 1e-7))))
+            a = b
         return dist, g0, g1

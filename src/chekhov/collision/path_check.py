@@ -24,8 +24,11 @@ from chekhov.collision.fast import FastChecker
 
 Array = NDArray[np.float64]
 
-CHUNK_SEGMENTS = 8
+CHUNK_SEGMENTS = 4
 """Segments screened per fast-checker call: the deadline is looked at between calls."""
+EXACT_WINDOW = 4
+"""Configurations coal checks from an alarm before the fast walk resumes (and the deadline is
+looked at again): near contact, conservative advancement takes small steps."""
 
 
 @dataclass(frozen=True)
@@ -69,7 +72,8 @@ def exact_path_decision(fast: FastChecker, exact: ExactChecker, path: Array,
 
     The fast checker walks :data:`CHUNK_SEGMENTS` segments at a time with clearance
     certificates; from each configuration it flags, coal (with conservative advancement) checks
-    the rest of that segment, and the fast walk resumes after it.
+    the next :data:`EXACT_WINDOW` configurations of that segment, and the fast walk resumes
+    after them.
     """
     P = np.ascontiguousarray(path, dtype=np.float64)
     last = len(P) - 1
@@ -95,7 +99,8 @@ def _chunk_free(fast: FastChecker, exact: ExactChecker, P: Array, substeps: int,
             return None
         if dense is None:
             dense = densify(P, substeps)
-        end = min(len(dense), (i // n + 1) * n + 1)   # through the segment's far waypoint
+        # coal (conservative advancement) over a window, at most to the segment's far end
+        end = min(len(dense), (i // n + 1) * n + 1, i + EXACT_WINDOW)
         if exact.first_collision_dense(dense[i:end]) is not None:
             return False
         if end >= len(dense):

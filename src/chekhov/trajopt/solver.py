@@ -28,6 +28,10 @@ Array = NDArray[np.float64]
 
 SUCCESS = frozenset({"converged", "iteration_limit", "exact_clear"})
 
+FIRST_STEP_S = 2.5e-3
+"""s: expected cost of the first SQP step (OSQP's setup and factorisation, one ADMM solve, one
+evaluation), for not starting a step that cannot finish by the time limit."""
+
 
 def solve_trajopt(problem: TrajOptProblem) -> TrajOptResult:
     """Optimise the problem's seed; validate the result as ``config.validate`` says.
@@ -52,13 +56,17 @@ def solve_trajopt(problem: TrajOptProblem) -> TrajOptResult:
     iterations = penalty_increases = 0
     converged = False
     out_of_budget = False
+    step_s = FIRST_STEP_S
     for _ in range(cfg.max_penalty_increases + 1):
         converged = False
         while True:
             merit_old = problem.merit(ev, mu)
             accepted = False
             while trust >= cfg.min_trust_rad:
-                if iterations >= cfg.max_iterations or time.perf_counter() > deadline:
+                # a step that cannot finish by the deadline is not started (its cost: the
+                # last step's, or FIRST_STEP_S for the first, which sets OSQP up)
+                if iterations >= cfg.max_iterations or \
+                        time.perf_counter() + step_s > deadline:
                     out_of_budget = True
                     break
                 t0 = time.perf_counter()
@@ -82,6 +90,7 @@ def solve_trajopt(problem: TrajOptProblem) -> TrajOptResult:
                 except DeadlineError:
                     out_of_budget = True
                     break
+                step_s = time.perf_counter() - t0
                 exact = merit_old - problem.merit(ev_new, mu)
                 if exact > cfg.improve_ratio_threshold * approx:
                     x, ev = x_new, ev_new
