@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from functools import cached_property
 from pathlib import Path
 
@@ -47,6 +48,13 @@ class World:
         """Add a dynamic obstacle to both checkers."""
         self.fast.add_obstacle(name, shape, T_world_obj)
         self.exact.add_obstacle(name, shape, T_world_obj)
+
+    def set_obstacles(self, obstacles: Mapping[str, tuple[Shape, Array]]) -> None:
+        """Make ``obstacles`` (name → (shape, T_world_obj (4, 4), m)) the world's dynamic
+        obstacles, replacing those added before, in both checkers at once (one rebuild each:
+        the way to update many obstacles per sensor frame)."""
+        self.fast.set_obstacles(obstacles)
+        self.exact.set_obstacles(obstacles)
 
     def move_obstacle(self, name: str, T_world_obj: Array) -> None:
         self.fast.move_obstacle(name, T_world_obj)

@@ -78,7 +78,9 @@ def geometry_extent(go: pin.GeometryObject, axis: Array) -> tuple[float, float]:
     return float(np.max(np.linalg.norm(pts, axis=1))), float(np.max(_line_distance(pts, axis)))
 
 
-def pair_weights(model: pin.Model, geom_model: pin.GeometryModel
+def pair_weights(model: pin.Model, geom_model: pin.GeometryModel,
+                 pairs: NDArray[np.int64] | None = None,
+                 radii_cache: dict[int, Array] | None = None
                  ) -> tuple[Array, NDArray[np.int64]] | None:
     """Motion-bound weights of every collision pair of ``geom_model``, or None when a joint is
     not revolute.
@@ -88,6 +90,10 @@ def pair_weights(model: pin.Model, geom_model: pin.GeometryModel
     moving with joint k's rotation moves at most |Δq_k| · (its distance from the axis); that
     distance is bounded over all configurations from the fixed link offsets: the distance of
     joint k+1's origin from axis k plus |x - origin k+1|.
+
+    ``pairs`` (P, 2): the geometry indices of the collision pairs, in the model's order (read
+    from the model when None); ``radii_cache``: per-geometry bounds kept between calls (a
+    geometry index must keep meaning the same geometry, as the robot's do).
     """
     K = model.nq
     found = [joint_axis(model.joints[k]) for k in range(1, K + 1)]
@@ -99,40 +105,39 @@ def pair_weights(model: pin.Model, geom_model: pin.GeometryModel
     # distance of joint k+1's origin from axis k (a fixed offset in frame k)
     lever = [float(_line_distance(off[k + 1][None], axes[k])[0]) if k + 1 < K else 0.0
              for k in range(K)]
-    cache: dict[int, Array] = {}
+    cache = radii_cache if radii_cache is not None else {}
+    objs = geom_model.geometryObjects
+    parents = np.array([objs[g].parentJoint for g in range(geom_model.ngeoms)], dtype=np.int64)
 
     def radii(gi: int) -> Array:
         """r_k for every joint moving geometry gi (0 for the others)."""
+        J = int(parents[gi])
+        if J == 0:
+            return np.zeros(K)
         if gi not in cache:
-            go = geom_model.geometryObjects[gi]
-            J = go.parentJoint  # pinocchio joint id; group index J - 1
             w = np.zeros(K)
-            if J > 0:
-                origin, line = geometry_extent(go, axes[J - 1])
-                w[J - 1] = min(origin, line)
-                for k in range(J - 2, -1, -1):
-                    w[k] = min(origin + link[k + 1], lever[k] + origin)
-                    origin += link[k + 1]
+            origin, line = geometry_extent(objs[gi], axes[J - 1])
+            w[J - 1] = min(origin, line)
+            for k in range(J - 2, -1, -1):
+                w[k] = min(origin + link[k + 1], lever[k] + origin)
+                origin += link[k + 1]
             cache[gi] = w * (1 + 1e-9) + 1e-12
         return cache[gi]
 
-    rows: dict[bytes, int] = {}
-    W: list[Array] = []
-    row = np.empty(len(geom_model.collisionPairs), dtype=np.int64)
-    objs = geom_model.geometryObjects
-    for i, cp in enumerate(geom_model.collisionPairs):
-        a, b = cp.first, cp.second
-        if objs[a].parentJoint > objs[b].parentJoint:
-            a, b = b, a
-        # b is distal: only the joints after a's move b relative to a
-        w = radii(b).copy()
-        w[:objs[a].parentJoint] = 0.0
-        key = w.tobytes()
-        if key not in rows:
-            rows[key] = len(W)
-            W.append(w)
-        row[i] = rows[key]
-    return np.array(W, dtype=float).reshape(-1, K), row
+    if pairs is None:
+        pairs = np.array([(cp.first, cp.second) for cp in geom_model.collisionPairs],
+                         dtype=np.int64).reshape(-1, 2)
+    R = np.stack([radii(g) for g in range(geom_model.ngeoms)]) if geom_model.ngeoms else \
+        np.zeros((0, K))
+    a, b = pairs[:, 0], pairs[:, 1]
+    swap = parents[a] > parents[b]   # b is distal: only the joints after a's move b
+    a, b = np.where(swap, b, a), np.where(swap, a, b)
+    # a pair's weights depend only on (b, a's joint): one row per distinct key
+    _, first, row = np.unique(b * (K + 1) + parents[a], return_index=True,
+                              return_inverse=True)
+    U = R[b[first]].copy()
+    U[np.arange(K)[None, :] < parents[a[first]][:, None]] = 0.0
+    return U.reshape(-1, K), row.reshape(-1).astype(np.int64)
 
 
 def first_collision_certified(model: pin.Model, data: pin.Data, geom_model: pin.GeometryModel,

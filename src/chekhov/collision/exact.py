@@ -4,6 +4,8 @@ shapes. It shares no collision code with the fast checker and is the validation 
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import coal
 import numpy as np
 import pinocchio as pin
@@ -36,11 +38,15 @@ class ExactChecker:
         self.data = robot.model.createData()
         self.geom_model = robot.collision_model.copy()
         self._robot_ngeoms = self.geom_model.ngeoms
+        self._radii: dict[int, Array] = {}   # motion bounds of the robot's geometries
         self._obstacles: dict[str, int] = {}
         if scene is not None:
             for o in scene.objects:
                 if not (o.dynamic and static_only):
                     self._add(o.name, o.shape, o.T_world_obj())
+        # the scene as built: set_obstacles starts from it
+        self._scene_model = self.geom_model.copy()
+        self._scene_obstacles = dict(self._obstacles)
         self._rebuild()
 
     def _add(self, name: str, shape: Shape, T: Array) -> None:
@@ -49,20 +55,42 @@ class ExactChecker:
         self._obstacles[name] = self.geom_model.addGeometryObject(go)
 
     def _rebuild(self) -> None:
+        """Collision pairs (self pairs, moving robot geometry × obstacles) set in one call, and
+        the data and motion-bound weights for them."""
         gm = self.geom_model
-        gm.removeAllCollisionPairs()
-        for a, b in self.robot.self_collision_pairs:
-            gm.addCollisionPair(pin.CollisionPair(a, b))
-        for g in self.robot.moving_geometries:
-            for o in self._obstacles.values():
-                gm.addCollisionPair(pin.CollisionPair(g, o))
+        n = gm.ngeoms
+        M = np.zeros((n, n), dtype=bool)
+        self_pairs = np.sort(np.asarray(self.robot.self_collision_pairs,
+                                        dtype=np.int64).reshape(-1, 2), axis=1)
+        M[self_pairs[:, 0], self_pairs[:, 1]] = True
+        obstacles = np.fromiter(self._obstacles.values(), dtype=np.int64)
+        moving = np.asarray(self.robot.moving_geometries, dtype=np.int64)
+        if len(obstacles) and len(moving):
+            lo = np.minimum(moving[:, None], obstacles[None, :])
+            hi = np.maximum(moving[:, None], obstacles[None, :])
+            M[lo, hi] = True
+        gm.setCollisionPairs(M, True)   # pinocchio adds (i, j), i < j, in row-major order
         self.geom_data = pin.GeometryData(gm)
-        self._weights = pair_weights(self.model, gm)
+        self._weights = pair_weights(self.model, gm, np.argwhere(np.triu(M, 1)),
+                                     self._radii)
 
     def add_obstacle(self, name: str, shape: Shape, T_world_obj: Array) -> None:
         if name in self._obstacles:
             raise KeyError(f"obstacle '{name}' already exists; use move_obstacle")
         self._add(name, shape, T_world_obj)
+        self._rebuild()
+
+    def set_obstacles(self, obstacles: Mapping[str, tuple[Shape, Array]]) -> None:
+        """Make ``obstacles`` (name → (shape, T_world_obj (4, 4))) the obstacles added since
+        construction, all at once: one rebuild of the collision pairs, however many change
+        (:meth:`add_obstacle` rebuilds them per call)."""
+        clash = set(obstacles) & set(self._scene_obstacles)
+        if clash:
+            raise KeyError(f"obstacle names already used by the scene: {sorted(clash)}")
+        self.geom_model = self._scene_model.copy()
+        self._obstacles = dict(self._scene_obstacles)
+        for name, (shape, T) in obstacles.items():
+            self._add(name, shape, T)
         self._rebuild()
 
     def move_obstacle(self, name: str, T_world_obj: Array) -> None:

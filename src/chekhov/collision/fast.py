@@ -7,6 +7,7 @@ never calls a configuration free that the exact checker calls colliding.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from itertools import pairwise
 
@@ -133,6 +134,7 @@ class FastChecker:
                 self._obstacles[o.name] = shape_primitive(o.shape, o.T_world_obj())
                 if o.dynamic:
                     self._dynamic.add(o.name)
+        self._scene_dynamic = frozenset(self._dynamic)   # set_obstacles keeps these
         self._static = pack([p for n, p in self._obstacles.items() if n not in self._dynamic])
         self._build_grids(grid_spacing)
         self._pack_env()
@@ -204,6 +206,22 @@ class FastChecker:
             raise KeyError(f"obstacle '{name}' already exists; use move_obstacle")
         self._obstacles[name] = shape_primitive(shape, np.asarray(T_world_obj, dtype=float))
         self._dynamic.add(name)
+        self._pack_env()
+
+    def set_obstacles(self, obstacles: Mapping[str, tuple[Shape, Array]]) -> None:
+        """Make ``obstacles`` (name → (shape, T_world_obj (4, 4))) the obstacles added since
+        construction, all
+        at once (one repacking, however many change); the scene's own dynamic objects stay."""
+        added = self._dynamic - self._scene_dynamic
+        clash = set(obstacles) & (set(self._obstacles) - added)
+        if clash:
+            raise KeyError(f"obstacle names already used by the scene: {sorted(clash)}")
+        for name in added:
+            del self._obstacles[name]
+        self._dynamic = set(self._scene_dynamic)
+        for name, (shape, T) in obstacles.items():
+            self._obstacles[name] = shape_primitive(shape, np.asarray(T, dtype=float))
+            self._dynamic.add(name)
         self._pack_env()
 
     def move_obstacle(self, name: str, T_world_obj: Array) -> None:

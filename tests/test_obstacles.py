@@ -1,0 +1,70 @@
+"""Many dynamic obstacles set at once (World.set_obstacles) give the same decisions as adding
+them one at a time, in both checkers; the exact checker's collision pairs and motion bounds
+are those a from-scratch computation gives."""
+
+import numpy as np
+import pytest
+
+from chekhov import Shape, World
+from chekhov.collision.advance import pair_weights
+
+
+def _obstacles(rng, n):
+    out = {}
+    for i in range(n):
+        T = np.eye(4)
+        T[:3, 3] = rng.uniform([0.3, -0.6, 0.7], [1.0, 0.6, 1.4])
+        kind = ("box", "sphere", "cylinder")[i % 3]
+        size = {"box": (0.08, 0.06, 0.1), "sphere": (0.07,), "cylinder": (0.05, 0.3)}[kind]
+        out[f"o{i}"] = (Shape(kind, size), T)
+    return out
+
+
+@pytest.fixture(scope="module")
+def worlds():
+    return World.load("tabletop_pole"), World.load("tabletop_pole")
+
+
+def test_set_obstacles_equals_adding_them_one_by_one(worlds):
+    batch, single = worlds
+    rng = np.random.default_rng(4)
+    Q = batch.robot.sample_uniform(rng, 300)
+    for n in (12, 3, 0):
+        obs = _obstacles(rng, n)
+        batch.set_obstacles(obs)
+        for name in single.fast.dynamic_obstacles:
+            single.remove_obstacle(name)
+        for name, (shape, T) in obs.items():
+            single.add_obstacle(name, shape, T)
+        assert batch.fast.dynamic_obstacles == sorted(obs)
+        assert np.array_equal(batch.fast.valid(Q), single.fast.valid(Q))
+        assert np.array_equal(batch.exact.valid(Q), single.exact.valid(Q))
+        if n:
+            assert not single.exact.valid(Q).all()   # the obstacles matter
+    batch.set_obstacles({})
+    for name in single.fast.dynamic_obstacles:
+        single.remove_obstacle(name)
+
+
+def test_exact_pairs_and_motion_bounds_match_a_fresh_computation(worlds):
+    world = worlds[0]
+    world.set_obstacles(_obstacles(np.random.default_rng(2), 7))
+    try:
+        gm = world.exact.geom_model
+        pairs = [(cp.first, cp.second) for cp in gm.collisionPairs]
+        obstacles = set(world.exact._obstacles.values())
+        expected = {tuple(sorted(p)) for p in world.robot.self_collision_pairs} | {
+            (min(g, o), max(g, o)) for g in world.robot.moving_geometries for o in obstacles}
+        assert sorted(pairs) == sorted(expected) and len(pairs) == len(expected)
+        W0, r0 = pair_weights(world.robot.model, gm)
+        W1, r1 = world.exact._weights
+        assert np.allclose(W0[r0], W1[r1])
+    finally:
+        world.set_obstacles({})
+
+
+def test_set_obstacles_refuses_a_scene_objects_name(worlds):
+    world = worlds[0]
+    name = world.scene.objects[0].name
+    with pytest.raises(KeyError, match=name):
+        world.set_obstacles({name: (Shape("sphere", (0.1,)), np.eye(4))})
