@@ -12,8 +12,18 @@ The public API is flat::
 
 from chekhov.collision.exact import ExactChecker, densify
 from chekhov.collision.fast import Contacts, FastChecker
-from chekhov.errors import ChekhovError, IKError, RobotError, SceneError
-from chekhov.planners.base import Planner, PlanResult, path_length, resample_path
+from chekhov.errors import (
+    CaseFileError,
+    ChekhovError,
+    IKError,
+    PlanningInputError,
+    RobotError,
+    SceneError,
+)
+from chekhov.planners.base import Planner, PlannerBase, PlanResult, path_length, resample_path
+from chekhov.planners.lazy_prm import LazyPRM, LazyPRMConfig
+from chekhov.planners.ompl_planner import OmplPlanner
+from chekhov.planners.query import PlanQuery
 from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt
 from chekhov.planners.trajopt_planner import SeededTrajOpt, TrajOptPlanner
 from chekhov.roadmap.build import build_roadmap
@@ -37,6 +47,7 @@ from chekhov.world import World
 
 __all__ = [
     "Articulation",
+    "CaseFileError",
     "ChekhovError",
     "Contacts",
     "ExactChecker",
@@ -45,8 +56,14 @@ __all__ = [
     "Grasp",
     "IKConfig",
     "IKError",
+    "LazyPRM",
+    "LazyPRMConfig",
+    "OmplPlanner",
+    "PlanQuery",
     "PlanResult",
     "Planner",
+    "PlannerBase",
+    "PlanningInputError",
     "Pose",
     "Region",
     "Roadmap",
