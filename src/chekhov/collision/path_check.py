@@ -24,7 +24,7 @@ from chekhov.collision.fast import FastChecker
 
 Array = NDArray[np.float64]
 
-CHUNK_SEGMENTS = 4
+CHUNK_SEGMENTS = 2
 """Segments screened per fast-checker call: the deadline is looked at between calls."""
 EXACT_WINDOW = 4
 """Configurations coal checks from an alarm before the fast walk resumes (and the deadline is

@@ -170,7 +170,7 @@ class RoadmapTrajOpt(PlannerBase):
         except ChekhovError as e:
             return self._result(query, False, None, "bad_problem", timing, seed,
                                 {"error": str(e)})
-        r = solve_trajopt(problem)
+        r = solve_trajopt(problem, query.deadline)
         timing["optimise"] = r.optimise_s
         timing["validate"] = r.timing_s["validate"]
         retry = None
@@ -180,7 +180,7 @@ class RoadmapTrajOpt(PlannerBase):
             # again, with the seed's own end configuration, an IK solution of the pose, as goal
             retry = solve_trajopt(build_trajopt(
                 self.world, query.q_start, Goal.configuration(seed[-1]), seed,
-                self.config.within(query.remaining()), self._distances))
+                self.config.within(query.remaining()), self._distances), query.deadline)
             timing["optimise"] += retry.optimise_s
             timing["validate"] += retry.timing_s["validate"]
             if retry.success:
@@ -229,7 +229,7 @@ class RoadmapTrajOpt(PlannerBase):
         except ChekhovError as e:
             return self._result(query, False, None, roadmap_status, timing,
                                 info={**info, "error": str(e)})
-        r = solve_trajopt(problem)
+        r = solve_trajopt(problem, query.deadline)
         timing["optimise"] = r.optimise_s
         timing["validate"] = r.timing_s["validate"]
         info.update({"trajopt_status": r.status, "iterations": r.iterations,

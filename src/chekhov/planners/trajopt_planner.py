@@ -114,14 +114,16 @@ class SeededTrajOpt(PlannerBase):
 def _optimise(world: World, config: TrajOptConfig, distances: TrajectoryDistances,
               q_start: Array, goal: Goal, seed: Array, time_limit_s: float, t0: float,
               timing: dict[str, float]) -> PlanResult:
-    """Run TrajOpt on a seed and wrap the outcome as a PlanResult."""
+    """Run TrajOpt on a seed for at most ``time_limit_s`` (s) and wrap the outcome as a
+    PlanResult."""
+    deadline = time.perf_counter() + time_limit_s
     cfg = config.within(time_limit_s)
     try:
         problem = build_trajopt(world, q_start, goal, seed, cfg, distances)
     except ChekhovError as e:
         return PlanResult(False, None, "bad_problem", time.perf_counter() - t0,
                           info={"error": str(e)})
-    r = solve_trajopt(problem)
+    r = solve_trajopt(problem, deadline)
     timing = {**timing, "optimise": r.optimise_s, "validate": r.timing_s["validate"]}
     return PlanResult(
         success=r.success, path=r.trajectory if r.success else None,

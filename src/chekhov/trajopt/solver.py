@@ -33,21 +33,26 @@ FIRST_STEP_S = 2.5e-3
 evaluation), for not starting a step that cannot finish by the time limit."""
 
 
-def solve_trajopt(problem: TrajOptProblem) -> TrajOptResult:
+def solve_trajopt(problem: TrajOptProblem, deadline: float = math.inf) -> TrajOptResult:
     """Optimise the problem's seed; validate the result as ``config.validate`` says.
 
-    A result that fails the validation gets status "collision" and ``success`` False.
+    A result that fails the validation gets status "collision" and ``success`` False. The
+    optimisation and validation end by ``config.time_limit_s`` after the call or by
+    ``deadline`` (a ``time.perf_counter()`` value, s: a planner's query deadline), whichever
+    comes first.
     """
     cfg = problem.config
     t_start = time.perf_counter()
     cpu_start = time.process_time()
-    deadline = t_start + cfg.time_limit_s
+    deadline = min(deadline, t_start + cfg.time_limit_s)
     timing = {"collision": 0.0, "linearise": 0.0, "qp": 0.0, "validate": 0.0}
     T, K = problem.n_waypoints, problem.dof
     x = problem.seed.ravel().copy()
     try:
         ev = problem.evaluate(problem.seed, timing, deadline)
     except DeadlineError:
+        return _timed_out(problem, t_start, timing)
+    if time.perf_counter() + FIRST_STEP_S > deadline:
         return _timed_out(problem, t_start, timing)
     qp = _sized_qp(problem, ev, None)
     rebuilds = 0
@@ -71,6 +76,9 @@ def solve_trajopt(problem: TrajOptProblem) -> TrajOptResult:
                     break
                 t0 = time.perf_counter()
                 if not qp.fits(ev):  # more terms than rows: a larger pattern, set up anew
+                    if t0 + FIRST_STEP_S > deadline:
+                        out_of_budget = True
+                        break
                     qp = _sized_qp(problem, ev, qp)
                     rebuilds += 1
                 x_new, model, _ = qp.solve(ev, x, trust, mu,
@@ -163,7 +171,8 @@ def validate_path(world: World, path: Array, mode: str = "exact", substeps: int 
 
 def _timed_out(problem: TrajOptProblem, t_start: float, timing: dict[str, float]
                ) -> TrajOptResult:
-    """The result when the time limit passed before the seed was even evaluated."""
+    """The result when the time limit passes before the first step (the seed's evaluation,
+    or no time left for a step after it)."""
     timing["total"] = time.perf_counter() - t_start
     return TrajOptResult(
         trajectory=problem.seed.copy(), status="timeout", success=False, valid=None,
