@@ -32,7 +32,6 @@ from chekhov import World, builtin_scenes, load_or_build_roadmap
 from chekhov.bench.cases import cached_cases
 from chekhov.bench.registry import PlannerSpec
 
-
 RETURN_SLACK_MS = 0.1
 
 
