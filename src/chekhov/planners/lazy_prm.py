@@ -116,7 +116,9 @@ class LazyPRM(PlannerBase):
 
         goals = solve_goal_ik(self.world, query, cfg.n_ik, self.rng, timing, info)
         if goals is None:
-            return done("no_ik")
+            return done("timeout" if query.expired() else "no_ik")
+        if query.expired():
+            return done("timeout")
         if not (robot.within_limits(q_start)[0] and self.node_valid(q_start[None])[0]):
             return done("invalid_start")
         t = time.perf_counter()
@@ -185,8 +187,9 @@ def connect(X: Array, new: IntArray, k: int, max_edge: float) -> IntArray:
     i = np.repeat(new, kk).reshape(len(new), kk)
     keep = np.isfinite(d) & (j != i)
     a, b = i[keep], j[keep]
-    pairs = np.stack([np.minimum(a, b), np.maximum(a, b)], axis=1).astype(np.int64)
-    return np.unique(pairs, axis=0) if len(pairs) else pairs.reshape(0, 2)
+    lo, hi = np.minimum(a, b).astype(np.int64), np.maximum(a, b).astype(np.int64)
+    key = np.unique(lo * len(X) + hi)   # one integer per pair: far faster than rows
+    return np.stack([key // len(X), key % len(X)], axis=1).astype(np.int64)
 
 
 def _csr(n: int, edges: IntArray) -> tuple[IntArray, IntArray, IntArray]:

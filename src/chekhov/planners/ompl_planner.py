@@ -180,7 +180,9 @@ class OmplPlanner(PlannerBase):
 
         goals = solve_goal_ik(self.world, query, self.n_ik, self.rng, timing, info)
         if goals is None:
-            return done("no_ik")
+            return done("timeout" if query.expired() else "no_ik")
+        if query.expired():
+            return done("timeout")
         if not (robot.within_limits(q_start)[0] and self.world.fast.is_valid(q_start)):
             return done("invalid_start")
         t = time.perf_counter()

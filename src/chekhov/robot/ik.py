@@ -73,7 +73,7 @@ def solve_ik(robot: Robot, T_world_ee: Array, n_solutions: int = 1, *,
         q0 = (robot.check_configuration(q_seed, "q_seed") if attempt == 0 and q_seed is not None
               else rng.uniform(robot.lower, robot.upper))
         q, pos_err, rot_err = _descend(model, data, fid, target, q0, robot.lower, robot.upper,
-                                       config)
+                                       config, deadline)
         if pos_err + rot_err < sum(best_err):
             best_err = (pos_err, rot_err)
         if pos_err > config.position_tolerance or rot_err > config.rotation_tolerance:
@@ -97,11 +97,16 @@ def solve_ik(robot: Robot, T_world_ee: Array, n_solutions: int = 1, *,
 
 
 def _descend(model: pin.Model, data: pin.Data, fid: int, target: pin.SE3, q: Array,
-             lower: Array, upper: Array, cfg: IKConfig) -> tuple[Array, float, float]:
+             lower: Array, upper: Array, cfg: IKConfig, deadline: float = math.inf
+             ) -> tuple[Array, float, float]:
+    """Damped least squares from q for at most ``cfg.max_iterations`` steps, stopping at the
+    tolerance or at ``deadline`` (perf_counter, s); (q, position error m, rotation error rad)."""
     q = q.copy()
     eye = np.eye(6)
     err = np.full(6, np.inf)
-    for _ in range(cfg.max_iterations):
+    for it in range(cfg.max_iterations):
+        if it % 8 == 7 and time.perf_counter() > deadline:
+            break
         pin.framesForwardKinematics(model, data, q)
         iMd = data.oMf[fid].actInv(target)
         err = pin.log6(iMd).vector
