@@ -115,12 +115,16 @@ class RobotDescription:
     @classmethod
     def builtin(cls, name: str) -> RobotDescription:
         """A description shipped with chekhov (``baxter_left``, ``panda``)."""
-        files = resources.files("chekhov.robot") / "data"
-        target = files / f"{name}.yaml"
-        if not target.is_file():
-            names = sorted(p.name[:-5] for p in files.iterdir() if p.name.endswith(".yaml"))
-            raise RobotError(f"no built-in robot '{name}'; available: {names}")
-        return cls.from_yaml(Path(str(target)))
+        names = builtin_robots()
+        if name not in names:  # never a path: "../x" must not reach outside the package
+            raise RobotError(f"no built-in robot {name!r}; available: {names}")
+        return cls.from_yaml(Path(str(resources.files("chekhov.robot") / "data" / f"{name}.yaml")))
+
+
+def builtin_robots() -> list[str]:
+    """Names of the robot descriptions shipped with chekhov."""
+    files = resources.files("chekhov.robot") / "data"
+    return sorted(p.name[:-5] for p in files.iterdir() if p.name.endswith(".yaml"))
 
 
 def example_robot_data_dir() -> Path:
