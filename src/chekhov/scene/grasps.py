@@ -46,7 +46,8 @@ def generate_grasps(shape: Shape, approaches: tuple[str, ...], standoff: float, 
         if a not in APPROACHES:
             raise ValueError(f"unknown approach {a!r}; known: {sorted(APPROACHES)}")
         z, x = (np.asarray(v, dtype=float) for v in APPROACHES[a])
-        y = np.cross(z, x)
+        y = np.array([z[1] * x[2] - z[2] * x[1], z[2] * x[0] - z[0] * x[2],
+                      z[0] * x[1] - z[1] * x[0]])  # z × x (np.cross takes 25x longer on 3-vectors)
         face = -z * h  # centre of the face the gripper comes through
         p = face + z * min(depth, float(h[np.argmax(np.abs(z))]))
         out.append(grasp_from_frame(a, make_transform(p, np.column_stack([x, y, z])), standoff))
