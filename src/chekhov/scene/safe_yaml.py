@@ -147,8 +147,9 @@ def read_yaml(path: Path, source: str) -> Any:
     """The single YAML document in ``path``, within the bounds above; ``source`` names the file
     in error messages."""
     text = _read_text(path, source)
-    loader = _Loader(text)
+    loader = None
     try:
+        loader = _Loader(text)  # the pure-Python reader checks the characters here
         _check_events(loader, source)
         loader.dispose()
         loader = _Loader(text)
@@ -162,4 +163,5 @@ def read_yaml(path: Path, source: str) -> Any:
     except (ValueError, TypeError, OverflowError) as e:  # e.g. a date 2001-13-45, 5000 digits
         raise SceneError(f"{source}: not valid YAML: {' '.join(str(e).split())[:200]}") from e
     finally:
-        loader.dispose()
+        if loader is not None:
+            loader.dispose()
