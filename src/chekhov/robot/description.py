@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import sys
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -47,6 +47,8 @@ class RobotDescription:
         proximal_joints: how many leading group joints the roadmap samples (the rest stay at
             ``roadmap_fixed`` values).
         roadmap_fixed: values (rad) of the distal group joints for roadmap nodes.
+        package_dirs: folders that ``package://`` mesh URIs resolve against (besides
+            example-robot-data's).
     """
 
     name: str
@@ -60,6 +62,23 @@ class RobotDescription:
     proximal_joints: int = 4
     roadmap_fixed: tuple[float, ...] = ()
     spheres: SphereSettings = field(default_factory=SphereSettings)
+    package_dirs: tuple[str, ...] = ()
+
+    def with_locked(self, locked: dict[str, float]) -> RobotDescription:
+        """This description with some locked (non-group) joints at other values (rad or m)."""
+        if not locked:
+            return self
+        clash = sorted(set(locked) & set(self.group_joints))
+        if clash:
+            raise RobotError(f"robot '{self.name}': cannot lock planned joints {clash}")
+        values = dict(self.fixed_joints)
+        for name, value in locked.items():
+            if isinstance(value, bool) or not isinstance(value, int | float) \
+                    or value != value or abs(value) == float("inf"):
+                raise RobotError(f"robot '{self.name}': locked joint '{name}': expected a "
+                                 f"finite number, got {value!r}")
+            values[str(name)] = float(value)
+        return replace(self, fixed_joints=tuple(sorted(values.items())))
 
     @property
     def dof(self) -> int:
@@ -92,6 +111,7 @@ class RobotDescription:
         kw["roadmap_fixed"] = tuple(float(x) for x in d.get("roadmap_fixed", ()))
         kw["spheres"] = SphereSettings(**d.get("spheres", {}))
         kw.setdefault("srdf", None)
+        kw["package_dirs"] = tuple(str(x) for x in d.get("package_dirs", ()))
         desc = cls(**kw)
         n_distal = desc.dof - desc.proximal_joints
         if desc.roadmap_fixed and len(desc.roadmap_fixed) != n_distal:

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import hashlib
 import xml.etree.ElementTree as ET
+from collections.abc import Sequence
 from functools import cached_property
 from pathlib import Path
 
@@ -11,7 +13,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from chekhov.errors import RobotError
-from chekhov.robot.description import RobotDescription, example_robot_data_dir
+from chekhov.robot.description import RobotDescription, SphereSettings, example_robot_data_dir
 from chekhov.transforms import make_transform, rpy_to_matrix
 
 Array = NDArray[np.float64]
@@ -29,44 +31,31 @@ class Robot:
     def __init__(self, description: RobotDescription, T_world_base: Array | None = None) -> None:
         self.description = description
         if T_world_base is None:
-            T_world_base = make_transform(
-                description.xyz_world_base, rpy_to_matrix(description.rpy_world_base)
-            )
+            T_world_base = make_transform(description.xyz_world_base,
+                                          rpy_to_matrix(description.rpy_world_base))
         self.T_world_base = np.asarray(T_world_base, dtype=float).copy()
+        if self.T_world_base.shape != (4, 4) or not np.all(np.isfinite(self.T_world_base)):
+            raise RobotError(f"robot '{description.name}': T_world_base must be a finite 4x4 "
+                             f"matrix, got shape {self.T_world_base.shape}")
         urdf = description.resolve(description.urdf)
         if not urdf.is_file():
             raise RobotError(f"robot '{description.name}': URDF not found at {urdf}")
-        package_dir = str(example_robot_data_dir().parent)
-        full = pin.buildModelFromUrdf(str(urdf))
-        col = pin.buildGeomFromUrdf(full, str(urdf), pin.COLLISION, package_dirs=[package_dir])
-        vis = pin.buildGeomFromUrdf(full, str(urdf), pin.VISUAL, package_dirs=[package_dir])
-        names = list(full.names)
-        missing = [j for j in description.group_joints if j not in names]
-        if missing:
-            raise RobotError(f"robot '{description.name}': group joints {missing} not in {urdf}")
-        q_ref = pin.neutral(full)
-        for jname, value in description.fixed_joints:
-            if jname not in names:
-                raise RobotError(f"robot '{description.name}': fixed joint '{jname}' not in {urdf}")
-            q_ref[full.joints[full.getJointId(jname)].idx_q] = value
-        lock = [
-            full.getJointId(n) for n in names[1:] if n not in description.group_joints
-        ]
-        model, (col, vis) = pin.buildReducedModel(full, [col, vis], lock, q_ref)
-        _move_base(model, [col, vis], pin.SE3(self.T_world_base))
-        reduced_names = list(model.names)[1:]
-        if reduced_names != list(description.group_joints):
-            raise RobotError(
-                f"robot '{description.name}': group joints must be listed in kinematic order; "
-                f"the model orders them {reduced_names}"
-            )
-        if not model.existFrame(description.ee_frame):
-            raise RobotError(f"robot '{description.name}': no end-effector frame "
-                             f"'{description.ee_frame}' in {urdf}")
+        self._urdf = urdf
+        self._package_dirs = [*description.package_dirs, *_default_package_dirs()]
+        try:
+            full = pin.buildModelFromUrdf(str(urdf))
+            col = pin.buildGeomFromUrdf(full, str(urdf), pin.COLLISION,
+                                        package_dirs=self._package_dirs)
+        except (RuntimeError, ValueError) as e:
+            raise RobotError(f"robot '{description.name}': cannot load {urdf}: {e}") from e
+        self._lock, self._q_ref = _locking(full, description, urdf)
+        model, col = pin.buildReducedModel(full, col, self._lock, self._q_ref)
+        self._full = full
+        _move_base(model, [col], pin.SE3(self.T_world_base))
+        _check_group(model, description, urdf)
         self.model = model
         self.data = model.createData()
         self.collision_model = col
-        self.visual_model = vis
         self.ee_frame_id = model.getFrameId(description.ee_frame)
         self.lower = model.lowerPositionLimit.copy()
         self.upper = model.upperPositionLimit.copy()
@@ -76,11 +65,79 @@ class Robot:
             description.resolve(description.srdf) if description.srdf else None
         )
 
+    @cached_property
+    def visual_model(self) -> pin.GeometryModel:
+        """The URDF's visual geometry, reduced and placed like the collision model (loaded on
+        first use: planning never needs it)."""
+        vis = pin.buildGeomFromUrdf(self._full, str(self._urdf), pin.VISUAL,
+                                    package_dirs=self._package_dirs)
+        _, vis = pin.buildReducedModel(self._full, vis, self._lock, self._q_ref)
+        T = pin.SE3(self.T_world_base)
+        for g in vis.geometryObjects:   # the model's joints were moved at construction
+            if g.parentJoint == 0:
+                g.placement = T * g.placement
+        return vis
+
+    def content_hash(self) -> str:
+        """SHA-256 (hex) of everything that decides this robot's geometry and kinematics: the
+        URDF and SRDF bytes, the group, the end-effector frame, the locked joint values, the
+        sphere settings and the base pose. Caches (roadmaps) are keyed on it."""
+        d = self.description
+        h = hashlib.sha256()
+        h.update(self._urdf.read_bytes())
+        if d.srdf:
+            h.update(d.resolve(d.srdf).read_bytes())
+        h.update(repr((d.group_joints, d.ee_frame, d.fixed_joints, d.spheres,
+                       np.round(self.T_world_base, 12).tolist())).encode())
+        return h.hexdigest()
+
     # --- construction -------------------------------------------------------------------
     @classmethod
-    def load(cls, name: str = "baxter_left", T_world_base: Array | None = None) -> Robot:
-        """A built-in robot (``baxter_left`` or ``panda``), optionally at another base pose."""
-        return cls(RobotDescription.builtin(name), T_world_base)
+    def load(cls, name: str = "baxter_left", T_world_base: Array | None = None,
+             locked: dict[str, float] | None = None) -> Robot:
+        """A built-in robot (``baxter_left`` or ``panda``), optionally at another base pose
+        (T_world_base (4, 4), m) and with some locked joints at other values (rad or m)."""
+        return cls(RobotDescription.builtin(name).with_locked(locked or {}), T_world_base)
+
+    @classmethod
+    def from_urdf(cls, urdf: str | Path, *, joints: Sequence[str], ee_frame: str,
+                  srdf: str | Path | None = None, package_dirs: Sequence[str | Path] = (),
+                  locked: dict[str, float] | None = None, name: str | None = None,
+                  T_world_base: Array | None = None, proximal_joints: int | None = None,
+                  roadmap_fixed: Sequence[float] = (),
+                  spheres: SphereSettings | None = None) -> Robot:
+        """Any serial arm from its URDF.
+
+        Args:
+            urdf: path of the URDF file.
+            joints: the planned joints, in kinematic order (the configuration's order).
+            ee_frame: the end-effector frame (its z axis is the approach direction).
+            srdf: an SRDF whose ``disable_collisions`` pairs prune self-collision checks.
+            package_dirs: folders that ``package://`` mesh URIs resolve against.
+            locked: values of joints outside the group (rad or m; unnamed ones: 0).
+            name: the robot's name (default: the URDF's file stem).
+            T_world_base: (4, 4) base pose in the world (m); identity by default.
+            proximal_joints, roadmap_fixed: roadmap sampling (default: all joints sampled).
+            spheres: how the fast checker's sphere cover is made.
+        """
+        urdf = Path(urdf).expanduser().resolve()
+        joints = tuple(str(j) for j in joints)
+        desc = RobotDescription(
+            name=name or urdf.stem, urdf=str(urdf),
+            srdf=str(Path(srdf).expanduser().resolve()) if srdf is not None else None,
+            group_joints=joints, ee_frame=ee_frame,
+            proximal_joints=len(joints) if proximal_joints is None else int(proximal_joints),
+            roadmap_fixed=tuple(float(x) for x in roadmap_fixed),
+            spheres=spheres if spheres is not None else SphereSettings(),
+            package_dirs=tuple(str(Path(p).expanduser()) for p in package_dirs))
+        n_distal = desc.dof - desc.proximal_joints
+        if not 0 <= n_distal <= desc.dof or (desc.roadmap_fixed and
+                                              len(desc.roadmap_fixed) != n_distal):
+            raise RobotError(f"robot '{desc.name}': proximal_joints {desc.proximal_joints} and "
+                             f"{len(desc.roadmap_fixed)} roadmap_fixed values do not fit "
+                             f"{desc.dof} joints")
+        return cls(desc.with_locked(locked or {}),
+                   np.eye(4) if T_world_base is None else T_world_base)
 
     @classmethod
     def from_yaml(cls, path: str | Path, T_world_base: Array | None = None) -> Robot:
@@ -224,6 +281,55 @@ class Robot:
                     continue
                 pairs.append((i, j))
         return tuple(pairs)
+
+
+def _default_package_dirs() -> list[str]:
+    """example-robot-data's share folder's parent, when the package is installed."""
+    try:
+        return [str(example_robot_data_dir().parent)]
+    except RobotError:
+        return []
+
+
+def _locking(full: pin.Model, description: RobotDescription, urdf: Path
+             ) -> tuple[list[int], Array]:
+    """The joints to lock (every one outside the group) and the full configuration holding
+    them at their locked values."""
+    names = list(full.names)
+    missing = [j for j in description.group_joints if j not in names]
+    if missing:
+        raise RobotError(f"robot '{description.name}': group joints {missing} not in {urdf}; "
+                         f"its joints: {names[1:]}")
+    q_ref = pin.neutral(full)
+    for jname, value in description.fixed_joints:
+        if jname not in names:
+            raise RobotError(f"robot '{description.name}': locked joint '{jname}' not in {urdf}")
+        joint = full.joints[full.getJointId(jname)]
+        if joint.nq != 1:
+            raise RobotError(f"robot '{description.name}': locked joint '{jname}' has "
+                             f"{joint.nq} coordinates; only 1-coordinate joints can be set")
+        q_ref[joint.idx_q] = value
+    lock = [full.getJointId(n) for n in names[1:] if n not in description.group_joints]
+    return lock, q_ref
+
+
+def _check_group(model: pin.Model, description: RobotDescription, urdf: Path) -> None:
+    """The reduced model is the group: its joints in the given order, one coordinate each, and
+    the end-effector frame exists."""
+    reduced_names = list(model.names)[1:]
+    if reduced_names != list(description.group_joints):
+        raise RobotError(
+            f"robot '{description.name}': group joints must be listed in kinematic order; "
+            f"the model orders them {reduced_names}")
+    for k in range(1, model.njoints):
+        j = model.joints[k]
+        if j.nq != 1 or j.nv != 1:
+            raise RobotError(f"robot '{description.name}': joint '{model.names[k]}' "
+                             f"({j.shortname()}) has {j.nq} coordinates; a planning group "
+                             "is a chain of 1-DOF revolute or prismatic joints")
+    if not model.existFrame(description.ee_frame):
+        raise RobotError(f"robot '{description.name}': no end-effector frame "
+                         f"'{description.ee_frame}' in {urdf}")
 
 
 def _move_base(model: pin.Model, geometry_models: list[pin.GeometryModel], T: pin.SE3) -> None:

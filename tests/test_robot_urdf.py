@@ -1,0 +1,104 @@
+"""Any arm from its URDF: Robot.from_urdf agrees with the built-in description, resolves meshes
+through package_dirs, keys caches on its content (locked joints included), refuses groups that
+are not chains of 1-DOF joints; the numbered example plans."""
+
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from chekhov import Robot, RobotError
+from chekhov.robot.description import example_robot_data_dir
+
+SHARE = example_robot_data_dir()
+PANDA = SHARE / "robots/panda_description"
+JOINTS = [f"panda_joint{i}" for i in range(1, 8)]
+
+
+def _panda(**kw):
+    kw.setdefault("package_dirs", [SHARE.parent])
+    kw.setdefault("joints", JOINTS)
+    return Robot.from_urdf(PANDA / "urdf/panda.urdf", ee_frame="panda_hand_tcp",
+                           srdf=PANDA / "srdf/panda.srdf", **kw)
+
+
+def test_from_urdf_matches_the_builtin_description():
+    builtin = Robot.load("panda")
+    robot = _panda(locked=dict(builtin.description.fixed_joints))
+    assert robot.dof == 7 and robot.joint_names == tuple(JOINTS)
+    assert np.allclose(robot.lower, builtin.lower) and np.allclose(robot.upper, builtin.upper)
+    Q = robot.sample_uniform(np.random.default_rng(0), 20)
+    assert np.allclose(robot.compute_ee_poses(Q), builtin.compute_ee_poses(Q), atol=1e-12)
+    assert robot.self_collision_pairs == builtin.self_collision_pairs
+
+
+def test_locked_joints_change_the_geometry_and_the_content_hash():
+    a = Robot.load("panda", locked={"panda_finger_joint1": 0.01, "panda_finger_joint2": 0.01})
+    b = Robot.load("panda", locked={"panda_finger_joint1": 0.04, "panda_finger_joint2": 0.04})
+    assert a.content_hash() != b.content_hash()
+    assert a.content_hash() == Robot.load("panda", locked={"panda_finger_joint1": 0.01,
+                                                           "panda_finger_joint2": 0.01}
+                                          ).content_hash()
+    fingers = [i for i in range(a.collision_model.ngeoms)
+               if "finger" in a.collision_model.geometryObjects[i].name]
+    assert fingers
+    q = np.zeros(7)
+    da, db = a.collision_model.createData(), b.collision_model.createData()
+    pin.updateGeometryPlacements(a.model, a.data, a.collision_model, da, q)
+    pin.updateGeometryPlacements(b.model, b.data, b.collision_model, db, q)
+    gap = [np.linalg.norm(da.oMg[i].translation - db.oMg[i].translation) for i in fingers]
+    assert max(gap) > 0.02   # the fingers moved by about 3 cm
+
+
+def test_locking_a_planned_joint_or_a_bad_value_is_an_error():
+    with pytest.raises(RobotError, match="planned joints"):
+        Robot.load("panda", locked={"panda_joint1": 0.0})
+    with pytest.raises(RobotError, match="finite number"):
+        Robot.load("panda", locked={"panda_finger_joint1": float("nan")})
+    with pytest.raises(RobotError, match="not in"):
+        Robot.load("panda", locked={"no_such_joint": 0.0})
+
+
+def test_a_group_that_is_not_a_joint_chain_is_refused():
+    with pytest.raises(RobotError, match="not in"):
+        _panda(joints=["panda_joint1", "nope"])
+    with pytest.raises(RobotError, match="kinematic order"):
+        _panda(joints=list(reversed(JOINTS)))
+    with pytest.raises(RobotError, match="end-effector frame"):
+        Robot.from_urdf(PANDA / "urdf/panda.urdf", joints=JOINTS, ee_frame="nope",
+                        package_dirs=[SHARE.parent])
+
+
+def test_meshes_resolve_through_package_dirs(tmp_path):
+    """A copy of the Panda outside example-robot-data, its mesh URIs renamed to a package of
+    its own: it loads only when that package's folder is given."""
+    pkg = tmp_path / "pkgs" / "my_panda"
+    shutil.copytree(PANDA / "meshes", pkg / "meshes")
+    text = (PANDA / "urdf/panda.urdf").read_text()
+    text = re.sub(r"package://example-robot-data/robots/panda_description/", "package://my_panda/",
+                  text)
+    (pkg / "panda.urdf").write_text(text)
+    robot = Robot.from_urdf(pkg / "panda.urdf", joints=JOINTS, ee_frame="panda_hand_tcp",
+                            package_dirs=[tmp_path / "pkgs"])
+    assert robot.collision_model.ngeoms > 0 and robot.name == "panda"
+    with pytest.raises(RobotError):
+        Robot.from_urdf(pkg / "panda.urdf", joints=JOINTS, ee_frame="panda_hand_tcp")
+
+
+def test_visual_meshes_load_only_when_asked():
+    robot = _panda()
+    assert "visual_model" not in robot.__dict__
+    assert robot.visual_model.ngeoms > 0
+
+
+def test_the_custom_urdf_example_plans():
+    example = Path(__file__).parents[1] / "examples" / "01_custom_urdf.py"
+    out = subprocess.run([sys.executable, str(example)], capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.startswith("solved certified"), out.stdout
