@@ -22,12 +22,15 @@ Array = NDArray[np.float64]
 
 class World:
     """A planning world. ``World.load("shelf_boxes")`` gives the scene, the robot placed as the
-    scene says, a fast checker (planning) and an exact checker (validation)."""
+    scene says (its base pose and locked joints), a fast checker (planning) and an exact
+    checker (validation). ``World(scene, robot)`` plans for any robot (e.g.
+    :meth:`Robot.from_urdf`) in any scene; the robot is then used as given."""
 
     def __init__(self, scene: Scene, robot: Robot | None = None) -> None:
         self.scene = scene
         self.robot = robot if robot is not None else Robot.load(
-            scene.robot, scene.base_pose.T if scene.base_pose is not None else None)
+            scene.robot, scene.base_pose.T if scene.base_pose is not None else None,
+            locked=dict(scene.locked_joints))
 
     @classmethod
     def load(cls, scene: str | Path) -> World:

@@ -54,6 +54,8 @@ def scene_to_dict(scene: Scene) -> dict[str, Any]:
     if scene.base_pose is not None:
         out["base_pose"] = {"xyz": list(scene.base_pose.xyz),
                             "quat": list(scene.base_pose.quat_wxyz)}
+    if scene.locked_joints:
+        out["locked_joints"] = dict(scene.locked_joints)
     out["objects"] = objects
     out["regions"] = [{"name": r.name, "center": list(r.center), "size": list(r.size),
                        "weight": r.weight} for r in scene.regions]

@@ -156,7 +156,9 @@ class Region:
 
 @dataclass(frozen=True)
 class Scene:
-    """A planning scene: obstacles with semantics, regions of interest, the robot's base pose."""
+    """A planning scene: obstacles with semantics, regions of interest, the robot's base pose
+    and the values of its locked joints (outside the planning group: fingers, the other arm;
+    (name, rad or m) pairs over the robot description's own)."""
 
     name: str
     objects: tuple[SceneObject, ...]
@@ -165,6 +167,7 @@ class Scene:
     base_pose: Pose | None = None
     description: str = ""
     source: str = field(default="<memory>", compare=False)
+    locked_joints: tuple[tuple[str, float], ...] = ()
 
     def object(self, name: str) -> SceneObject:
         for o in self.objects:

@@ -41,7 +41,9 @@ from chekhov.transforms import matrix_to_quat, rpy_to_matrix
 
 SIZE_COUNT = {"box": 3, "cylinder": 2, "sphere": 1}
 OBJECT_FIELDS = {"name", "class", "motion", "shape", "size", "pose", "grasps", "articulation"}
-SCENE_FIELDS = {"name", "description", "robot", "base_pose", "objects", "regions", "format"}
+MAX_LOCKED = 200
+SCENE_FIELDS = {"name", "description", "robot", "base_pose", "locked_joints", "objects", "regions",
+                "format"}
 REGION_FIELDS = {"name", "center", "size", "weight"}
 FORMAT_VERSION = 1
 MAX_LENGTH = 1000.0  # m (rad): largest coordinate, size, standoff, depth, angle, state value
@@ -301,9 +303,7 @@ def scene_from_dict(d: Any, source: str = "<dict>") -> Scene:
     """Validate a parsed scene mapping and build a :class:`Scene` (rules: module docstring)."""
     ctx = _Ctx(source)
     name, robot, description = _header(ctx, d)
-    objs = _list(ctx, "objects", d.get("objects"), MAX_OBJECTS, "objects")
-    if not objs:
-        raise ctx.fail("objects", "expected a non-empty list of objects")
+    objs = _list(ctx, "objects", d.get("objects", []), MAX_OBJECTS, "objects")
     objects = tuple(_object(ctx, o, i) for i, o in enumerate(objs))
     dup = sorted(n for n, c in Counter(o.name for o in objects).items() if c > 1)
     if dup:
@@ -311,4 +311,19 @@ def scene_from_dict(d: Any, source: str = "<dict>") -> Scene:
     regions = _regions(ctx, d.get("regions"))
     base = _pose(ctx, "base_pose", d["base_pose"]) if "base_pose" in d else None
     return Scene(name=name, objects=objects, regions=regions, robot=robot, base_pose=base,
-                 description=description, source=source)
+                 description=description, source=source,
+                 locked_joints=_locked(ctx, d.get("locked_joints", {})))
+
+
+def _locked(ctx: _Ctx, d: Any) -> tuple[tuple[str, float], ...]:
+    """locked_joints: {joint name: value (rad or m)} for joints outside the planning group
+    (which joints exist is checked when the robot is built)."""
+    if not isinstance(d, dict):
+        raise ctx.fail("locked_joints", f"expected a mapping of joint name to value, got "
+                                        f"{show(d)}")
+    if len(d) > MAX_LOCKED:
+        raise ctx.fail("locked_joints", f"{len(d)} joints; at most {MAX_LOCKED} are allowed")
+    out = []
+    for k, v in d.items():
+        out.append((_name(ctx, "locked_joints", k), _number(ctx, f"locked_joints.{k}", v)))
+    return tuple(sorted(out))
