@@ -10,37 +10,105 @@
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from chekhov.bench.config import DEFAULT_TIME_LIMIT_S, EXECUTORS
+from chekhov.cli import checks
 from chekhov.errors import ChekhovError
+
+if TYPE_CHECKING:
+    from chekhov.bench.config import BenchConfig
+
+MAX_CASES = 1_000_000
+
+
+def _check_scenes(names: list[str] | None) -> dict[str, str]:
+    """``--scenes`` entry → the scene's name, each scene file read and checked (default: the
+    built-in scenes)."""
+    from chekhov.scene.io import builtin_scenes, load_scene
+
+    out: dict[str, str] = {}
+    for entry in names or builtin_scenes():
+        try:
+            name = load_scene(entry).name
+        except ChekhovError as e:
+            raise type(e)(f"--scenes: {e}") from e
+        twin = next((e for e, n in out.items() if n == name), None)
+        if twin is not None:
+            raise ChekhovError(f"--scenes: scene '{name}' is listed twice ({twin}, {entry})")
+        out[entry] = name
+    return out
+
+
+def _check_case_files(files: list[str] | None, scenes: dict[str, str]
+                      ) -> tuple[tuple[str, str], ...]:
+    """(``--scenes`` entry, case file) of each ``--case-file``, matched by the scene it was
+    made for; at most one per scene."""
+    from chekhov.bench.cases import CaseSet
+
+    entry_of = {name: entry for entry, name in scenes.items()}
+    out: dict[str, str] = {}
+    for f in files or []:
+        checks.input_file(f, "--case-file")
+        scene = CaseSet.load(f).scene
+        entry = entry_of.get(scene)
+        if entry is None:
+            raise ChekhovError(f"--case-file {f}: cases of scene '{scene}', which is not in "
+                               f"--scenes {list(scenes)}")
+        if entry in out:
+            raise ChekhovError(f"--case-file {f}: a second case file for scene '{scene}' "
+                               f"(first: {out[entry]})")
+        out[entry] = str(f)
+    return tuple(out.items())
+
+
+def _check_outputs(args: argparse.Namespace) -> None:
+    """Every file the command writes, checked before the database is created."""
+    checks.sqlite_file(args.db, "--db", must_exist=False)
+    for flag, value in (("--csv", args.csv), ("--summary-json", args.summary_json)):
+        if value is not None:
+            checks.output_file(value, flag)
+    report = []
+    if args.report is not None:
+        d = checks.output_dir(args.report, "--report")
+        report = [("--report", d / n) for n in ("report.md", "summary.json", "runs.csv")]
+    checks.distinct_outputs([("--db", args.db), ("--csv", args.csv),
+                             ("--summary-json", args.summary_json), *report])
+
+
+def _check_bench_args(args: argparse.Namespace) -> BenchConfig:
+    """The benchmark's settings, every argument checked before any file is created."""
+    from chekhov.bench.config import BenchConfig
+    from chekhov.bench.registry import expand_planner_names
+
+    scenes = _check_scenes(args.scenes)
+    try:
+        planners = expand_planner_names(args.planners)
+    except ChekhovError as e:
+        raise type(e)(f"--planners: {e}") from e
+    if args.executor == "ray" and importlib.util.find_spec("ray") is None:
+        raise ChekhovError("--executor ray needs Ray: pip install 'chekhov[ray]'")
+    case_files = _check_case_files(args.case_file, scenes)
+    config = BenchConfig(scenes=tuple(scenes), planners=planners,
+                         n_cases=args.cases, time_limit_s=args.time_limit,
+                         case_seed=args.case_seed, case_files=case_files,
+                         workers=args.workers, executor=args.executor, address=args.address,
+                         share_seed_runs=not args.no_share_seed_runs)
+    _check_outputs(args)
+    return config
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
-    from chekhov.bench.cases import CaseSet
-    from chekhov.bench.config import BenchConfig
     from chekhov.bench.database import BenchDatabase
     from chekhov.bench.files import write_text
-    from chekhov.bench.registry import expand_planner_names
     from chekhov.bench.runner import run_benchmark
     from chekhov.bench.summary import compute_stats, format_table, summary_json
-    from chekhov.scene.io import builtin_scenes
 
-    scenes = tuple(args.scenes or builtin_scenes())
-    case_files = []
-    for f in args.case_file or []:
-        scene = CaseSet.load(f).scene
-        if scene not in scenes:
-            raise ChekhovError(f"--case-file {f}: cases of scene '{scene}', which is not in "
-                               f"--scenes {list(scenes)}")
-        case_files.append((scene, str(f)))
-    config = BenchConfig(scenes=scenes, planners=expand_planner_names(args.planners),
-                         n_cases=args.cases, time_limit_s=args.time_limit,
-                         case_seed=args.case_seed, case_files=tuple(case_files),
-                         workers=args.workers, executor=args.executor, address=args.address,
-                         share_seed_runs=not args.no_share_seed_runs)
+    config = _check_bench_args(args)
     print(f"bench: {len(config.scenes)} scene(s) × {len(config.planners)} planner(s) × "
           f"{config.n_cases} case(s), time limit {config.time_limit_s:g} s per plan, "
           f"executor {config.executor}, database {args.db}", file=sys.stderr)
@@ -72,6 +140,10 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 def _cmd_report(args: argparse.Namespace) -> int:
     from chekhov.bench.report import write_report
 
+    checks.sqlite_file(args.db, "DB", must_exist=True)
+    out = checks.output_dir(args.out, "--out")
+    checks.distinct_outputs([("DB", args.db), *(("--out", out / n) for n in
+                                                 ("report.md", "summary.json", "runs.csv"))])
     files = write_report(args.db, args.out)
     print(f"wrote {files.markdown}, {files.summary_json.name}, {files.csv.name} and "
           f"{len(files.images)} PNG(s) in {Path(args.out)}")
@@ -92,14 +164,15 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help=f"planners ({', '.join(PLANNER_NAMES)}) or groups "
                         f"({', '.join(f'{k}: {len(v)}' for k, v in GROUPS.items())}); "
                         "default all")
-    b.add_argument("--cases", type=int, default=20, metavar="N",
+    b.add_argument("--cases", type=checks.int_at_least(1, MAX_CASES), default=20, metavar="N",
                    help="cases per scene (default 20)")
-    b.add_argument("--time-limit", type=float, default=DEFAULT_TIME_LIMIT_S, metavar="S",
+    b.add_argument("--time-limit", type=checks.positive_seconds, default=DEFAULT_TIME_LIMIT_S,
+                   metavar="S",
                    help=f"time limit of every plan call, s (default {DEFAULT_TIME_LIMIT_S:g}; "
                         "the paper: 300)")
     b.add_argument("--db", default="bench.db", metavar="FILE",
                    help="results database (created or resumed; default bench.db)")
-    b.add_argument("--workers", type=int, metavar="W",
+    b.add_argument("--workers", type=checks.WORKERS, metavar="W",
                    help="worker processes / Ray actors (default: CPU count / cluster CPUs)")
     b.add_argument("--executor", choices=EXECUTORS, default="local",
                    help="local processes (default) or a Ray cluster")
@@ -108,7 +181,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     b.add_argument("--summary-json", metavar="FILE",
                    help="write per scene and planner statistics and runtime ratios as JSON")
     b.add_argument("--csv", metavar="FILE", help="also export every run of the database as CSV")
-    b.add_argument("--case-seed", type=int, default=0, help="seed of generated cases")
+    b.add_argument("--case-seed", type=checks.SEED, default=0, metavar="S",
+                   help=f"seed of generated cases, 0..{checks.SEED_MAX} (default 0)")
     b.add_argument("--case-file", nargs="+", metavar="FILE",
                    help="case files (chekhov cases generate) to use instead of generated "
                         "cases, one per scene")
@@ -120,6 +194,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     b.set_defaults(func=_cmd_bench)
     r = sub.add_parser("report", help="Markdown report with the paper's tables and PNG plots "
                        "from a benchmark database")
-    r.add_argument("db", help="benchmark database (chekhov bench --db)")
+    r.add_argument("db", metavar="DB", help="benchmark database (chekhov bench --db)")
     r.add_argument("--out", required=True, metavar="DIR", help="output folder")
     r.set_defaults(func=_cmd_report)

@@ -14,7 +14,37 @@ from pathlib import Path
 
 import numpy as np
 
+from chekhov.cli import checks
 from chekhov.errors import ChekhovError
+
+MAX_CASES = 1_000_000
+
+
+def _check_generate_args(args: argparse.Namespace) -> Path:
+    """Check the scene, the planners and the output file before any work; returns the output
+    path (default ``SCENE-sSEED-nN.npz``). Fills in the solvability defaults."""
+    from chekhov.planners.ompl_planner import _ALIASES, PLANNERS
+    from chekhov.scene.io import load_scene
+
+    scene = load_scene(args.scene)
+    if args.no_solvability:
+        for flag, value in (("--planners", args.planners),
+                            ("--solvability-limit", args.solvability_limit)):
+            if value is not None:
+                raise ChekhovError(f"{flag} sets the solvability pass: not with --no-solvability")
+    args.planners = args.planners or ["RRTConnect"]
+    args.solvability_limit = args.solvability_limit or 1.0
+    kinds = []
+    for name in args.planners:
+        kind = _ALIASES.get(name.lower())
+        if kind is None:
+            raise ChekhovError(f"--planners: unknown OMPL planner '{name}'; available: "
+                               f"{', '.join(PLANNERS)}")
+        if kind in kinds:
+            raise ChekhovError(f"--planners: {kind} is listed twice in {args.planners}")
+        kinds.append(kind)
+    out = args.out if args.out else f"{scene.name}-s{args.seed}-n{args.n}.npz"
+    return checks.output_file(out, "--out")
 
 
 def _cmd_generate(args: argparse.Namespace) -> int:
@@ -23,8 +53,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     from chekhov.planners.ompl_planner import OmplPlanner
     from chekhov.world import World
 
-    if args.n < 1:
-        raise ChekhovError(f"--n must be at least 1, got {args.n}")
+    out = _check_generate_args(args)
     world = World.load(args.scene)
     t0 = time.perf_counter()
     cases = generate_cases(world, args.n, args.seed)
@@ -46,8 +75,6 @@ def _cmd_generate(args: argparse.Namespace) -> int:
               f"{rep.replaced} replacement(s) for {len(rep.replaced_indices)} case(s)"
               + (f", {len(rep.unsolved_indices)} still unsolved" if rep.unsolved_indices else "")
               + f", {rep.time_s:.1f} s")
-    out = Path(args.out) if args.out else Path(
-        f"{world.scene.name}-s{args.seed}-n{args.n}.npz")
     cases.save(out)
     print(f"wrote {out}")
     return 0
@@ -57,6 +84,7 @@ def _cmd_info(args: argparse.Namespace) -> int:
     from chekhov.bench.cases import CaseSet
     from chekhov.world import World
 
+    checks.input_file(args.file, "case file")
     world = World.load(args.scene) if args.scene else None
     cases = CaseSet.load(args.file, world)
     meta = cases.meta()
@@ -78,18 +106,22 @@ def register(sub: argparse._SubParsersAction) -> None:
     g = csub.add_parser("generate", help="random start/goal cases for a scene (deterministic "
                         "for a seed), with the paper's solvability pass")
     g.add_argument("scene", help="built-in scene name or scene YAML file")
-    g.add_argument("--n", type=int, default=5000, help="number of cases (default 5000)")
-    g.add_argument("--seed", type=int, default=0)
-    g.add_argument("--out", help="output .npz (default SCENE-sSEED-nN.npz)")
-    g.add_argument("--solvability-limit", type=float, default=1.0, metavar="S",
-                   help="time limit per planner and case of the solvability pass (s)")
-    g.add_argument("--planners", nargs="+", default=["RRTConnect"],
+    g.add_argument("--n", type=checks.int_at_least(1, MAX_CASES), default=5000,
+                   help="number of cases (default 5000)")
+    g.add_argument("--seed", type=checks.SEED, default=0,
+                   help=f"seed of the cases, 0..{checks.SEED_MAX} (default 0)")
+    g.add_argument("--out", metavar="FILE", help="output .npz (default SCENE-sSEED-nN.npz)")
+    g.add_argument("--solvability-limit", type=checks.positive_seconds, metavar="S",
+                   help="time limit per planner and case of the solvability pass, s > 0 "
+                        "(default 1)")
+    g.add_argument("--planners", nargs="+", metavar="NAME",
                    help="OMPL planners of the solvability pass (default RRTConnect)")
     g.add_argument("--no-solvability", action="store_true",
                    help="skip the solvability pass (the cases are then exactly "
                         "generate_cases(n, seed))")
     g.set_defaults(func=_cmd_generate)
     i = csub.add_parser("info", help="summary of a case file")
-    i.add_argument("file")
-    i.add_argument("--scene", help="also check that the file belongs to this scene")
+    i.add_argument("file", metavar="FILE", help="case file (.npz)")
+    i.add_argument("--scene", metavar="SCENE",
+                   help="also check that the file belongs to this scene")
     i.set_defaults(func=_cmd_info)

@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import argparse
 import time
+import zipfile
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from chekhov.cli import checks
 from chekhov.errors import ChekhovError
 
 if TYPE_CHECKING:
@@ -48,9 +50,9 @@ def _load_path(path: str, dof: int) -> np.ndarray:
         else:
             text = p.read_text()
             arr = np.loadtxt(p, delimiter="," if "," in text else None, ndmin=2)
-    except (OSError, ValueError, IndexError) as e:
+        arr = np.atleast_2d(np.asarray(arr, dtype=float))
+    except (OSError, ValueError, TypeError, IndexError, EOFError, zipfile.BadZipFile) as e:
         raise ChekhovError(f"--path {path}: cannot read a trajectory: {e}") from e
-    arr = np.atleast_2d(np.asarray(arr, dtype=float))
     if arr.ndim != 2 or arr.shape[1] != dof or len(arr) < 1:
         raise ChekhovError(f"--path {path}: expected waypoints of shape (T, {dof}) rad, "
                            f"got {arr.shape}")
@@ -59,18 +61,81 @@ def _load_path(path: str, dof: int) -> np.ndarray:
     return arr
 
 
+ROADMAP_TRAJOPT = "Roadmap+TrajOpt"
+SHOW_CACHED_CASES = 100
+"""``show --case`` without ``--cases`` plans one of the first 100 cached cases of seed 0."""
+
+
+def _check_show_args(args: argparse.Namespace) -> None:
+    """Every argument of ``show`` that can be checked without loading the scene's world."""
+    if args.path is not None and args.case is not None:
+        raise ChekhovError("give --path or --case, not both")
+    if args.case is None:
+        for flag, value in (("--cases", args.cases), ("--planner", args.planner),
+                            ("--roadmap", args.roadmap)):
+            if value is not None:
+                raise ChekhovError(f"{flag} is used only with --case N")
+    if args.roadmap is not None and (args.planner or ROADMAP_TRAJOPT) != ROADMAP_TRAJOPT:
+        raise ChekhovError(f"--roadmap is used only by --planner {ROADMAP_TRAJOPT}, "
+                           f"not {args.planner}")
+    if args.case is not None and args.cases is None and args.case >= SHOW_CACHED_CASES:
+        raise ChekhovError(f"--case {args.case}: without --cases the valid range is "
+                           f"0..{SHOW_CACHED_CASES - 1} (cached cases of seed 0); for others, "
+                           "write a case file (chekhov cases generate) and give --cases FILE")
+    for flag, value in (("--path", args.path), ("--cases", args.cases),
+                        ("--roadmap", args.roadmap)):
+        if value is not None:
+            checks.input_file(value, flag)
+    if args.case is not None and args.cases is not None:
+        from chekhov.bench.cases import CaseSet
+
+        n = len(CaseSet.load(args.cases))
+        if args.case >= n:
+            raise ChekhovError(f"--case {args.case}: --cases {args.cases} holds {n} cases, the "
+                               f"valid range is 0..{n - 1}")
+    checks.output_file(args.out, "--out")
+    if Path(args.out).suffix.lower() != ".png":
+        raise ChekhovError(f"--out {args.out}: the picture is a PNG: give a name ending in .png")
+    if args.save_path is not None:
+        if args.path is None and args.case is None:
+            raise ChekhovError("--save-path needs a path to save: give --path or --case")
+        if not args.save_path.endswith(".npy"):
+            args.save_path += ".npy"  # as numpy.save names it
+        checks.output_file(args.save_path, "--save-path")
+    checks.distinct_outputs([("--path", args.path), ("--out", args.out),
+                             ("--save-path", args.save_path)])
+
+
+def _check_limits(world: World, Q: np.ndarray | None, arg: str) -> None:
+    """Raise unless every row of ``Q`` (N, K) lies within the robot's joint limits (rad)."""
+    if Q is None:
+        return
+    Q = np.atleast_2d(Q)
+    inside = world.robot.within_limits(Q)
+    if inside.all():
+        return
+    i = int(np.argmin(inside))
+    r = world.robot
+    bad = [f"{n} = {v:g} not in [{lo:g}, {hi:g}]" for n, v, lo, hi
+           in zip(r.joint_names, Q[i], r.lower, r.upper, strict=True) if not lo <= v <= hi]
+    where = f" (waypoint {i})" if len(Q) > 1 else ""
+    raise ChekhovError(f"{arg}: outside the joint limits (rad){where}: {'; '.join(bad)}")
+
+
 def _cmd_show(args: argparse.Namespace) -> int:
+    from chekhov.bench.files import write_file
     from chekhov.viewer.render import render_scene
     from chekhov.world import World
 
+    _check_show_args(args)
     world = World.load(args.scene)
     q = _parse_q(args.q, world.robot.dof)
+    _check_limits(world, q, "--q")
     path = seed = None
     note = ""
-    if args.path is not None and args.case is not None:
-        raise ChekhovError("give --path or --case, not both")
     if args.path is not None:
         path = _load_path(args.path, world.robot.dof)
+        _check_limits(world, path, f"--path {args.path}")
         note = f", path of {len(path)} waypoints"
     elif args.case is not None:
         path, seed, note = _plan_case(world, args)
@@ -79,7 +144,8 @@ def _cmd_show(args: argparse.Namespace) -> int:
     out = render_scene(world, q=q, path=path, seed=seed, out=args.out, ghosts=args.ghosts,
                        title=args.title)
     if args.save_path and path is not None:
-        np.save(args.save_path, path)
+        drawn = path
+        write_file(args.save_path, lambda f: np.save(f, drawn), mode="wb")
     shown = q if q is not None else path[0]  # type: ignore[index]
     free = world.is_free(shown)
     print(f"wrote {out} ({world.scene.name}, q {'free' if free else 'IN COLLISION'}{note})")
@@ -91,12 +157,11 @@ def _plan_case(world: World, args: argparse.Namespace
     """Plan case ``args.case`` with ``args.planner``; (path, seed, a note for the output)."""
     from chekhov.bench.cases import CaseSet, cached_cases
     from chekhov.roadmap.io import load_or_build_roadmap, load_roadmap
-    from chekhov.viewer.planning import ROADMAP_TRAJOPT, PlannerPool, PlanView
+    from chekhov.viewer.planning import PlannerPool, PlanView
 
     cases = CaseSet.load(args.cases, world) if args.cases else cached_cases(
         world, max(20, args.case + 1))
-    if not 0 <= args.case < len(cases):
-        raise ChekhovError(f"--case {args.case}: only {len(cases)} cases")
+    args.planner = args.planner or ROADMAP_TRAJOPT
     roadmap = None
     if args.planner == ROADMAP_TRAJOPT:
         roadmap = (load_roadmap(args.roadmap, world) if args.roadmap
@@ -124,7 +189,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     from chekhov.viewer.render import render_scene
     from chekhov.world import World
 
-    out = Path(args.out)
+    out = checks.output_dir(args.out, "--out")
     for name in builtin_scenes():
         world = World.load(name)
         t0 = time.perf_counter()
@@ -152,27 +217,40 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def _register_show(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("show", help="write a picture of a scene with the robot")
+    p.add_argument("scene", help="built-in scene name or scene YAML file")
+    p.add_argument("--q", type=checks.finite_float, nargs="+",
+                   help="joint values (rad), group order, within the joint limits")
+    p.add_argument("--out", default="scene.png", metavar="FILE",
+                   help="PNG file to write (default scene.png)")
+    p.add_argument("--path", metavar="FILE",
+                   help="trajectory to draw (robot ghosts along it): .npy, .npz or text, "
+                        "(T, K) rad")
+    p.add_argument("--case", type=checks.int_at_least(0), metavar="N",
+                   help="plan this case (0-based; of --cases, else one of the first "
+                        f"{SHOW_CACHED_CASES} cached cases) and draw the trajectory and its seed")
+    p.add_argument("--cases", metavar="FILE", help="case file for --case")
+    p.add_argument("--planner", default=None,
+                   choices=[ROADMAP_TRAJOPT, "TrajOpt", "RRTConnect", "RRTConnect+TrajOpt"],
+                   help=f"planner for --case (default {ROADMAP_TRAJOPT})")
+    p.add_argument("--roadmap", metavar="FILE",
+                   help="roadmap file for --case (default: the cached one)")
+    p.add_argument("--ghosts", type=checks.int_at_least(0, 200), default=6, metavar="N",
+                   help="robot ghosts along the path (default 6)")
+    p.add_argument("--title", help="picture title (default: the scene name)")
+    p.add_argument("--save-path", metavar="FILE",
+                   help="also save the drawn path as .npy (with --path or --case)")
+    p.set_defaults(func=_cmd_show)
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the scene commands to the top-level parser."""
     sub.add_parser("scenes", help="list the built-in scenes").set_defaults(func=_cmd_scenes)
-    p = sub.add_parser("show", help="write a picture of a scene with the robot")
-    p.add_argument("scene", help="built-in scene name or scene YAML file")
-    p.add_argument("--q", type=float, nargs="+", help="joint values (rad), group order")
-    p.add_argument("--out", default="scene.png", help="PNG file to write")
-    p.add_argument("--path", help="trajectory to draw (robot ghosts along it): .npy, .npz or "
-                                  "text, (T, K) rad")
-    p.add_argument("--case", type=int, help="plan this case (cached cases, or --cases) and "
-                                            "draw the trajectory and its seed")
-    p.add_argument("--cases", help="case file for --case")
-    p.add_argument("--planner", default="Roadmap+TrajOpt",
-                   choices=["Roadmap+TrajOpt", "TrajOpt", "RRTConnect", "RRTConnect+TrajOpt"],
-                   help="planner for --case")
-    p.add_argument("--roadmap", help="roadmap file for --case (default: the cached one)")
-    p.add_argument("--ghosts", type=int, default=6, help="robot ghosts along the path")
-    p.add_argument("--title", help="picture title (default: the scene name)")
-    p.add_argument("--save-path", help="also save the drawn path as .npy")
-    p.set_defaults(func=_cmd_show)
+    _register_show(sub)
     p = sub.add_parser("demo", help="main job: roadmaps, Roadmap + TrajOpt plans, pictures")
-    p.add_argument("--out", default="out/demo", help="folder for the pictures")
-    p.add_argument("--cases", type=int, default=20, help="random cases per scene")
+    p.add_argument("--out", default="out/demo", metavar="DIR",
+                   help="folder for the pictures (default out/demo)")
+    p.add_argument("--cases", type=checks.int_at_least(1, 10_000), default=20, metavar="N",
+                   help="random cases per scene (default 20)")
     p.set_defaults(func=_cmd_demo)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from chekhov.cli import checks
 from chekhov.errors import ChekhovError
 
 
@@ -13,8 +14,15 @@ def _cmd_view(args: argparse.Namespace) -> int:
     except ImportError as e:
         raise ChekhovError("chekhov view needs the viewer extra: pip install 'chekhov[viewer]' "
                            f"({e})") from e
+    from chekhov.scene.io import load_scene
     from chekhov.viewer.app import check_port_free
 
+    if args.cases is not None and args.n_cases is not None:
+        raise ChekhovError("give --cases FILE or --n-cases N, not both")
+    for flag, value in (("--cases", args.cases), ("--roadmap", args.roadmap)):
+        if value is not None:
+            checks.input_file(value, flag)
+    load_scene(args.scene)
     check_port_free(args.host, args.port)  # fail fast, before loading anything
     from chekhov.bench.cases import CaseSet, cached_cases
     from chekhov.roadmap.io import load_or_build_roadmap, load_roadmap
@@ -24,7 +32,8 @@ def _cmd_view(args: argparse.Namespace) -> int:
     world = World.load(args.scene)
     roadmap = (load_roadmap(args.roadmap, world) if args.roadmap
                else load_or_build_roadmap(world, progress=lambda s: print(s, flush=True)))
-    cases = CaseSet.load(args.cases, world) if args.cases else cached_cases(world, args.n_cases)
+    cases = (CaseSet.load(args.cases, world) if args.cases
+             else cached_cases(world, args.n_cases or 20))
     viewer = Viewer(world, roadmap, cases, host=args.host, port=args.port,
                     show_spheres=args.spheres, show_roadmap=not args.hide_roadmap,
                     show_edges=args.edges)
@@ -38,13 +47,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("view", help="interactive 3D viewer in the browser (viser): plan, "
                                     "drag obstacles, watch it replan")
     p.add_argument("scene", help="built-in scene name or scene YAML file")
-    p.add_argument("--roadmap", help="roadmap file (default: the cached roadmap, built if "
-                                     "missing)")
-    p.add_argument("--cases", help="case file (default: 20 cached cases, seed 0)")
-    p.add_argument("--n-cases", type=int, default=20, help="cases when no --cases file")
+    p.add_argument("--roadmap", metavar="FILE",
+                   help="roadmap file (default: the cached roadmap, built if missing)")
+    p.add_argument("--cases", metavar="FILE", help="case file (default: 20 cached cases, seed 0)")
+    p.add_argument("--n-cases", type=checks.int_at_least(1, 1000), metavar="N",
+                   help="cached cases of seed 0 when no --cases file (default 20)")
     p.add_argument("--host", default="127.0.0.1", help="address to listen on (default "
                                                        "localhost only)")
-    p.add_argument("--port", type=int, default=8080, help="port (default 8080)")
+    p.add_argument("--port", type=checks.PORT, default=8080, metavar="PORT",
+                   help="port, 1..65535 (default 8080)")
     p.add_argument("--spheres", action="store_true", help="show the collision spheres")
     p.add_argument("--hide-roadmap", action="store_true",
                    help="start with the roadmap's nodes hidden (a GUI checkbox shows them)")
