@@ -8,6 +8,7 @@ import contextlib
 import io
 import math
 import os
+import sqlite3
 import subprocess
 import sys
 import time
@@ -126,7 +127,9 @@ def test_unwritable_output_fails_before_any_work(argv, arg, afile, capsys):
 
 def test_report_out_under_a_file(afile, capsys, tmp_path):
     db = tmp_path / "r.db"
-    db.write_bytes(b"SQLite format 3\x00" + bytes(84))
+    with sqlite3.connect(db) as conn:
+        conn.execute("CREATE TABLE chekhov_runs (x)")
+    conn.close()
     assert_one_line(["report", str(db), "--out", "afile/rep"], capsys, "--out", "afile")
 
 
@@ -151,6 +154,16 @@ def test_bench_db_that_is_not_a_database_is_left_alone(no_work, capsys):
     Path("notes.txt").write_text(text)
     assert_one_line([*BENCH, "--db", "notes.txt"], capsys, "--db", "not an SQLite")
     assert Path("notes.txt").read_text() == text
+
+
+def test_other_sqlite_databases_are_left_alone(no_work, capsys):
+    with sqlite3.connect("app.db") as conn:
+        conn.execute("CREATE TABLE t (x)")
+    conn.close()
+    before = Path("app.db").read_bytes()
+    assert_one_line([*BENCH, "--db", "app.db"], capsys, "--db", "not a chekhov")
+    assert_one_line(["report", "app.db", "--out", "rep"], capsys, "app.db", "not a chekhov")
+    assert Path("app.db").read_bytes() == before and not Path("rep").exists()
 
 
 def test_report_of_an_empty_file_leaves_it_empty(no_work, capsys):

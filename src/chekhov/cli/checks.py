@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sqlite3
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -130,8 +131,10 @@ def output_dir(path: str | Path, arg: str) -> Path:
 
 
 def sqlite_file(path: str | Path, arg: str, must_exist: bool) -> Path:
-    """Check a benchmark database path: an SQLite file (read and written in place), or with
-    ``must_exist`` False a new file that can be created. Never creates or changes it."""
+    """Check a benchmark database path: a chekhov benchmark database (read and written in
+    place), or with ``must_exist`` False also a new or empty file that can be created, so that
+    another program's file or SQLite database is never written into. Never creates or changes
+    the file."""
     p = Path(path)
     if must_exist and not p.exists():
         raise ChekhovError(f"{arg} {path}: no such benchmark database")
@@ -149,7 +152,24 @@ def sqlite_file(path: str | Path, arg: str, must_exist: bool) -> Path:
     if head != _SQLITE_MAGIC and (must_exist or head):
         raise ChekhovError(f"{arg} {path}: not an SQLite benchmark database "
                            f"({'empty file' if not head else 'other content'})")
+    tables = _sqlite_tables(p, arg) if head else set()
+    if (must_exist or tables) and "chekhov_runs" not in tables:
+        raise ChekhovError(f"{arg} {path}: an SQLite database, but not a chekhov benchmark "
+                           f"database (tables: {sorted(tables) or 'none'})")
     return p
+
+
+def _sqlite_tables(path: Path, arg: str) -> set[str]:
+    """Names of the tables of the SQLite file ``path``, read without changing it."""
+    try:
+        conn = sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True)
+        try:
+            rows = conn.execute("SELECT name FROM sqlite_master WHERE type = 'table'")
+            return {r[0] for r in rows}
+        finally:
+            conn.close()
+    except sqlite3.Error as e:
+        raise ChekhovError(f"{arg} {path}: cannot read the SQLite database: {e}") from e
 
 
 def distinct_outputs(paths: list[tuple[str, str | Path | None]]) -> None:
