@@ -6,7 +6,8 @@
     chekhov demo [--out DIR]               the main job (see README)
 
 Exit status: 0 done, 2 bad arguments or input files (argparse's usage errors too), 1 the
-system refused (an OSError: disk full, permissions …), 130 interrupted (Ctrl-C).
+system refused (an OSError: disk full, permissions …), 130 interrupted (Ctrl-C), 141 the
+reader of stdout went away (``chekhov scenes | head -1``).
 Every failure is one line on stderr, never a traceback.
 """
 
