@@ -31,20 +31,26 @@ file belongs to that world's scene (content hash) and robot.
 from __future__ import annotations
 
 import json
+import logging
 import os
+import struct
+import zipfile
+import zlib
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import IO, Any
 
 import numpy as np
+from numpy.lib.npyio import NpzFile
 from numpy.typing import NDArray
 
-from chekhov.errors import ChekhovError
+from chekhov.errors import CaseFileError, ChekhovError
 from chekhov.robot.goal import Goal
 from chekhov.scene.io import write_atomic
 from chekhov.world import World
 
 Array = NDArray[np.float64]
+_log = logging.getLogger(__name__)
 
 CASE_FORMAT = "chekhov-cases"
 CASE_FORMAT_VERSION = 1
@@ -132,59 +138,151 @@ class CaseSet:
 
     @classmethod
     def load(cls, path: str | Path, world: World | None = None) -> CaseSet:
-        """Read a case file; with ``world``, check that it was made for that scene and robot.
+        """Read a case file; with ``world``, check that it was made for that scene and robot
+        and that its configurations lie within the robot's joint limits.
 
-        Raises :class:`ChekhovError` naming the file and what does not match.
+        Everything read is checked (header fields and types, array names, dtypes, shapes,
+        finiteness, poses). Raises :class:`CaseFileError` naming the file and what is wrong
+        (missing, truncated, corrupt, malformed, of another scene or robot).
         """
         path = Path(path)
+        data = _read_npz(path)
+        meta = _read_header(path, data)
+        _check_arrays(path, data, meta)
         try:
-            with np.load(path, allow_pickle=False) as z:
-                data = {k: z[k] for k in z.files}
-        except FileNotFoundError as e:
-            raise ChekhovError(f"{path}: no such case file") from e
-        except (OSError, ValueError) as e:
-            raise ChekhovError(f"{path}: not a chekhov case file (.npz): {e}") from e
-        try:
-            meta = json.loads(str(data["meta"]))
-        except (KeyError, json.JSONDecodeError) as e:
-            raise ChekhovError(f"{path}: not a chekhov case file: no readable 'meta' header")\
-                from e
-        if not isinstance(meta, dict) or meta.get("format") != CASE_FORMAT:
-            raise ChekhovError(f"{path}: not a chekhov case file (format "
-                               f"{meta.get('format') if isinstance(meta, dict) else meta!r})")
-        version = meta.get("version")
-        if version != CASE_FORMAT_VERSION:
-            raise ChekhovError(f"{path}: case file format version {version}; this chekhov reads "
-                               f"version {CASE_FORMAT_VERSION} — regenerate it with "
-                               "`chekhov cases generate`")
-        missing = [k for k in (*_ARRAYS,) if k not in data] + [
-            k for k in ("scene", "scene_hash", "robot", "joint_names", "seed") if k not in meta]
-        if missing:
-            raise ChekhovError(f"{path}: case file lacks {missing}")
-        try:
-            cases = cls(scene=str(meta["scene"]), scene_hash=str(meta["scene_hash"]),
-                        robot=str(meta["robot"]), joint_names=tuple(meta["joint_names"]),
-                        seed=int(meta["seed"]), replaced=int(meta.get("replaced", 0)),
+            cases = cls(scene=meta["scene"], scene_hash=meta["scene_hash"],
+                        robot=meta["robot"], joint_names=tuple(meta["joint_names"]),
+                        seed=meta["seed"], replaced=meta.get("replaced", 0),
                         **{a: data[a] for a in _ARRAYS})
         except ChekhovError as e:
-            raise ChekhovError(f"{path}: {e}") from e
+            raise CaseFileError(f"{path}: {e}") from e
         if world is not None:
             cases.check_world(world, source=str(path))
+            _check_limits(path, cases, world)
         return cases
 
     def check_world(self, world: World, source: str = "cases") -> None:
-        """Raise :class:`ChekhovError` unless these cases belong to ``world``."""
+        """Raise :class:`CaseFileError` unless these cases belong to ``world``."""
         h = world.scene.content_hash()
         if self.scene_hash != h:
-            raise ChekhovError(
+            raise CaseFileError(
                 f"{source}: cases were generated for scene '{self.scene}' (content hash "
                 f"{self.scene_hash[:12]}), not for scene '{world.scene.name}' (content hash "
                 f"{h[:12]}); the scene differs — regenerate with `chekhov cases generate "
                 f"{world.scene.name}`")
         if self.robot != world.robot.name or self.joint_names != world.robot.joint_names:
-            raise ChekhovError(f"{source}: cases are for robot '{self.robot}' "
+            raise CaseFileError(f"{source}: cases are for robot '{self.robot}' "
                                f"{list(self.joint_names)}, the world's robot is "
                                f"'{world.robot.name}' {list(world.robot.joint_names)}")
+
+
+# --- reading and checking files ----------------------------------------------------------
+# what numpy and zipfile raise on a truncated or corrupt archive
+_READ_ERRORS = (OSError, ValueError, EOFError, KeyError, IndexError, RuntimeError,
+                MemoryError, OverflowError, zipfile.BadZipFile, zlib.error,
+                struct.error)
+# meta field: (type, what the message says is expected)
+_FIELDS: dict[str, tuple[type, str]] = {
+    "scene": (str, "a string"), "scene_hash": (str, "a string"), "robot": (str, "a string"),
+    "joint_names": (list, "a non-empty list of joint names"), "seed": (int, "an integer"),
+    "n": (int, "an integer ≥ 1"), "replaced": (int, "an integer ≥ 0")}
+
+
+def _read_npz(path: Path) -> dict[str, np.ndarray]:
+    """Every array of the ``.npz`` at ``path``; :class:`CaseFileError` when unreadable."""
+    try:
+        z = np.load(path, allow_pickle=False)
+    except FileNotFoundError as e:
+        raise CaseFileError(f"{path}: no such case file") from e
+    except IsADirectoryError as e:
+        raise CaseFileError(f"{path}: is a folder, not a case file") from e
+    except _READ_ERRORS as e:
+        raise CaseFileError(f"{path}: not a chekhov case file, or truncated or corrupt "
+                            f"(cannot read it as .npz: {type(e).__name__}: {e})") from e
+    if not isinstance(z, NpzFile):
+        raise CaseFileError(f"{path}: not a chekhov case file (a single NumPy array, not an "
+                            ".npz archive)")
+    data = {}
+    with z:
+        for k in z.files:
+            try:
+                data[k] = z[k]
+            except _READ_ERRORS as e:
+                raise CaseFileError(f"{path}: case file is truncated or corrupt: array '{k}' "
+                                    f"cannot be read ({type(e).__name__}: {e})") from e
+    return data
+
+
+def _read_header(path: Path, data: dict[str, np.ndarray]) -> dict[str, Any]:
+    """The checked JSON header of a case file (see the module docstring)."""
+    m = data.get("meta")
+    if m is None or m.shape != () or m.dtype.kind != "U":
+        raise CaseFileError(f"{path}: not a chekhov case file: no readable 'meta' header")
+    try:
+        meta = json.loads(str(m))
+    except (ValueError, RecursionError) as e:
+        raise CaseFileError(f"{path}: not a chekhov case file: 'meta' header is not JSON "
+                            f"({e})") from e
+    if not isinstance(meta, dict) or meta.get("format") != CASE_FORMAT:
+        raise CaseFileError(f"{path}: not a chekhov case file (format "
+                            f"{meta.get('format') if isinstance(meta, dict) else meta!r:.60})")
+    version = meta.get("version")
+    if version != CASE_FORMAT_VERSION:
+        raise CaseFileError(f"{path}: case file format version {version!r:.20}; this chekhov "
+                            f"reads version {CASE_FORMAT_VERSION} — regenerate it with "
+                            "`chekhov cases generate`")
+    for key, (typ, expected) in _FIELDS.items():
+        if key not in meta:
+            if key == "replaced":
+                continue
+            raise CaseFileError(f"{path}: case file lacks the meta field '{key}'")
+        v = meta[key]
+        ok = isinstance(v, typ) and not isinstance(v, bool)
+        if key == "joint_names":
+            ok = ok and len(v) > 0 and all(isinstance(j, str) for j in v)
+        elif key in ("n", "replaced"):
+            ok = ok and v >= (1 if key == "n" else 0)
+        if not ok:
+            raise CaseFileError(f"{path}: meta field '{key}' must be {expected}, got {v!r:.60}")
+    return meta
+
+
+def _check_arrays(path: Path, data: dict[str, np.ndarray], meta: dict[str, Any]) -> None:
+    """Names, dtypes, shapes, finiteness of the arrays, and that the poses are poses."""
+    n, k = meta["n"], len(meta["joint_names"])
+    for name in _ARRAYS:
+        if name not in data:
+            raise CaseFileError(f"{path}: case file lacks the array '{name}'")
+        a = data[name]
+        if a.dtype != np.float64:
+            raise CaseFileError(f"{path}: array '{name}' has dtype {a.dtype}, expected float64")
+        shape = (n, k) if name.startswith("q_") else (n, 4, 4)
+        if a.shape != shape:
+            raise CaseFileError(
+                f"{path}: array '{name}' has shape {a.shape}, expected {shape}: the header has "
+                f"'n' = {n} cases and {k} 'joint_names'")
+        bad = ~np.isfinite(a.reshape(n, -1)).all(axis=1)
+        if bad.any():
+            raise CaseFileError(f"{path}: array '{name}' holds NaN or infinite values (case "
+                                f"{int(np.argmax(bad))})")
+        if name.startswith("T_"):
+            R = a[:, :3, :3]
+            err = np.abs(np.einsum("nji,njk->nik", R, R) - np.eye(3)).max(axis=(1, 2))
+            bad = (err > 1e-6) | (np.abs(a[:, 3] - [0.0, 0.0, 0.0, 1.0]).max(axis=1) > 0) \
+                | (np.linalg.det(R) <= 0)
+            if bad.any():
+                raise CaseFileError(f"{path}: array '{name}' case {int(np.argmax(bad))} is not "
+                                    "a homogeneous transform (rotation and last row 0 0 0 1)")
+
+
+def _check_limits(path: Path, cases: CaseSet, world: World) -> None:
+    """Both configurations of every case within the robot's joint limits (1e-9 rad)."""
+    for name in ("q_start", "q_goal"):
+        out = ~world.robot.within_limits(getattr(cases, name))
+        if out.any():
+            i = int(np.argmax(out))
+            raise CaseFileError(f"{path}: array '{name}' case {i} lies outside the joint "
+                                f"limits of robot '{world.robot.name}'")
 
 
 # --- generation -------------------------------------------------------------------------
@@ -246,7 +344,9 @@ def cached_cases(world: World, n: int, seed: int = 0, cache_dir: str | Path | No
                  ) -> CaseSet:
     """The n cases of ``generate_cases(world, n, seed)``, generated on first use and cached
     (``{scene}-{hash[:12]}-s{seed}-n{n}.npz``). A cached file with at least n cases is reused
-    (its first n cases are the same cases)."""
+    (its first n cases are the same cases). A cached file that cannot be used is regenerated
+    (with a warning on the ``chekhov`` logger, which goes to stderr unless configured) and
+    written atomically."""
     d = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     stem = cache_stem(world, seed)
     cases = find_cached(world, d, stem, n)
@@ -262,12 +362,37 @@ def cache_stem(world: World, seed: int, kind: str = "") -> str:
 
 
 def find_cached(world: World, cache_dir: Path, stem: str, n: int) -> CaseSet | None:
-    """The first n cases of a cached ``{stem}-n{N}.npz`` with N ≥ n, or None."""
+    """The first n cases of a cached ``{stem}-n{N}.npz`` with N ≥ n, or None.
+
+    A cached file that cannot be used (truncated, corrupt, malformed, of another world) is
+    logged as a warning naming it and removed, so the caller regenerates it."""
     for p in sorted(cache_dir.glob(f"{stem}-n*.npz")):
         try:
             have = int(p.stem.rsplit("-n", 1)[1])
         except ValueError:
             continue
         if have >= n:
-            return CaseSet.load(p, world).head(n)
+            cases = _load_cached(p, world)
+            if cases is not None:
+                return cases.head(n)
+    return None
+
+
+def _load_cached(path: Path, world: World) -> CaseSet | None:
+    """The cases of a cached file, or None after removing it when it is unusable (unless
+    another process replaced it meanwhile)."""
+    try:
+        before = path.stat()
+        return CaseSet.load(path, world)
+    except FileNotFoundError:
+        return None
+    except CaseFileError as e:
+        _log.warning("chekhov: cached case file %s is unusable, regenerating it: %s", path, e)
+    try:
+        now = path.stat()
+        if (now.st_ino, now.st_size, now.st_mtime_ns) == (
+                before.st_ino, before.st_size, before.st_mtime_ns):
+            path.unlink()
+    except FileNotFoundError:
+        pass
     return None
