@@ -33,18 +33,15 @@ from __future__ import annotations
 import json
 import logging
 import os
-import struct
-import zipfile
-import zlib
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import IO, Any
 
 import numpy as np
-from numpy.lib.npyio import NpzFile
 from numpy.typing import NDArray
 
 from chekhov.errors import CaseFileError, ChekhovError
+from chekhov.npzfile import read_npz
 from chekhov.robot.goal import Goal
 from chekhov.scene.io import write_atomic
 from chekhov.world import World
@@ -146,7 +143,7 @@ class CaseSet:
         (missing, truncated, corrupt, malformed, of another scene or robot).
         """
         path = Path(path)
-        data = _read_npz(path)
+        data = read_npz(path, None, CaseFileError, "case")
         meta = _read_header(path, data)
         _check_arrays(path, data, meta)
         try:
@@ -177,40 +174,11 @@ class CaseSet:
 
 
 # --- reading and checking files ----------------------------------------------------------
-# what numpy and zipfile raise on a truncated or corrupt archive
-_READ_ERRORS = (OSError, ValueError, EOFError, KeyError, IndexError, RuntimeError,
-                MemoryError, OverflowError, zipfile.BadZipFile, zlib.error,
-                struct.error)
 # meta field: (type, what the message says is expected)
 _FIELDS: dict[str, tuple[type, str]] = {
     "scene": (str, "a string"), "scene_hash": (str, "a string"), "robot": (str, "a string"),
     "joint_names": (list, "a non-empty list of joint names"), "seed": (int, "an integer"),
     "n": (int, "an integer ≥ 1"), "replaced": (int, "an integer ≥ 0")}
-
-
-def _read_npz(path: Path) -> dict[str, np.ndarray]:
-    """Every array of the ``.npz`` at ``path``; :class:`CaseFileError` when unreadable."""
-    try:
-        z = np.load(path, allow_pickle=False)
-    except FileNotFoundError as e:
-        raise CaseFileError(f"{path}: no such case file") from e
-    except IsADirectoryError as e:
-        raise CaseFileError(f"{path}: is a folder, not a case file") from e
-    except _READ_ERRORS as e:
-        raise CaseFileError(f"{path}: not a chekhov case file, or truncated or corrupt "
-                            f"(cannot read it as .npz: {type(e).__name__}: {e})") from e
-    if not isinstance(z, NpzFile):
-        raise CaseFileError(f"{path}: not a chekhov case file (a single NumPy array, not an "
-                            ".npz archive)")
-    data = {}
-    with z:
-        for k in z.files:
-            try:
-                data[k] = z[k]
-            except _READ_ERRORS as e:
-                raise CaseFileError(f"{path}: case file is truncated or corrupt: array '{k}' "
-                                    f"cannot be read ({type(e).__name__}: {e})") from e
-    return data
 
 
 def _read_header(path: Path, data: dict[str, np.ndarray]) -> dict[str, Any]:
@@ -224,8 +192,9 @@ def _read_header(path: Path, data: dict[str, np.ndarray]) -> dict[str, Any]:
         raise CaseFileError(f"{path}: not a chekhov case file: 'meta' header is not JSON "
                             f"({e})") from e
     if not isinstance(meta, dict) or meta.get("format") != CASE_FORMAT:
-        raise CaseFileError(f"{path}: not a chekhov case file (format "
-                            f"{meta.get('format') if isinstance(meta, dict) else meta!r:.60})")
+        got = meta.get("format") if isinstance(meta, dict) else meta
+        raise CaseFileError(f"{path}: not a chekhov case file (its 'meta' header is not an "
+                            f"object with format '{CASE_FORMAT}', got {got!r:.60})")
     version = meta.get("version")
     if version != CASE_FORMAT_VERSION:
         raise CaseFileError(f"{path}: case file format version {version!r:.20}; this chekhov "
