@@ -1,11 +1,12 @@
 """Benchmark runner, database, summary and report: a tiny run into a temporary database,
 resumed without recomputation, OMPL's tables, CSV, summary JSON, report files, and the same
-results from a local Ray cluster as from local processes."""
+runs from a pool of two processes and from two Ray actors as from one worker."""
 
 import csv
 import io
 import json
 import os
+import socket
 import sqlite3
 
 import numpy as np
@@ -63,7 +64,7 @@ def test_registry_names_and_groups():
         BenchConfig((SCENE,), ("TrajOpt",), address="x:1")
 
 
-def test_schema_has_ompl_tables_and_every_run(db):
+def test_schema_has_ompl_tables_and_every_run(db, world_of):
     con = sqlite3.connect(db)
     tables = {r[0] for r in con.execute("SELECT name FROM sqlite_master WHERE type='table'")}
     assert {"experiments", "plannerConfigs", "runs", "progress", "enums"} <= tables
@@ -84,10 +85,14 @@ def test_schema_has_ompl_tables_and_every_run(db):
         rows = d.rows(paths=True)
     assert sorted((r["planner"], r["case_index"]) for r in rows) == sorted(
         (p, i) for p in PLANNERS for i in range(3))
+    exact = world_of(SCENE).exact
     for r in rows:
         assert r["time"] > 0 and r["timing"]
         if r["solved"]:
-            assert r["correct_solution"] in (0, 1)          # exact check done
+            # every returned path is exactly collision-free: the runner's exact check says
+            # so, and so does the exact checker on the stored path
+            assert (r["correct_solution"], r["exact_collision"], r["success"]) == (1, 0, 1)
+            assert exact.path_valid(r["path"], substeps=100)
             assert r["path"].shape == (r["waypoints"], 7)
             assert r["solution_length"] == pytest.approx(
                 np.linalg.norm(np.diff(r["path"], axis=0), axis=1).sum(), rel=1e-4)
@@ -182,24 +187,32 @@ def test_report_writes_markdown_and_pngs(tmp, db):
     assert json.loads(files.summary_json.read_text())["scenes"][SCENE]
 
 
-def test_ray_gives_the_same_results_as_local_processes(tmp):
-    pytest.importorskip("ray", reason="Ray is optional (pip install 'chekhov[ray]')")
+def test_two_processes_and_two_ray_actors_give_the_runs_of_one_worker(tmp):
     # planners whose outcome is a function of the case and the run seed: Roadmap+TrajOpt
     # (never a colliding answer; its exactly checked seed as fallback) and LazyPRM (reseeded
     # per run). Straight-line TrajOpt is not: the same case planned repeatedly in one process
     # alternates between solved, "collision" and "infeasible" (see the bench report notes).
     planners = ("Roadmap+TrajOpt", "LazyPRM")
-    outcomes = {}
-    for executor in ("local", "ray"):
-        db = tmp / f"{executor}.db"
-        out = run_benchmark(config(tmp, n=2, planners=planners, workers=2, executor=executor),
-                            db, progress=False)
-        assert out.ran == 4
+    runs, workers = {}, {}
+    for executor, n_workers in (("local", 1), ("local", 2), ("ray", 2)):
+        db = tmp / f"{executor}{n_workers}.db"
+        out = run_benchmark(config(tmp, n=2, planners=planners, workers=n_workers,
+                                   executor=executor), db, progress=False)
+        assert (out.ran, out.planned, out.by_others) == (4, 4, 0)
         with BenchDatabase(db) as d:
-            outcomes[executor] = {(r["planner"], r["case_index"]): (r["solved"],
-                                                                    r["status_text"])
-                                  for r in d.rows()}
-    assert outcomes["ray"] == outcomes["local"]
+            rows = d.rows()
+        runs[executor, n_workers] = {(r["planner"], r["case_index"]): (
+            r["case_hash"], r["solved"], r["success"], r["status_text"]) for r in rows}
+        with sqlite3.connect(db) as con:
+            workers[executor, n_workers] = {w for (w,) in con.execute(
+                "SELECT worker FROM chekhov_runs")}
+    assert len(runs["local", 1]) == 4
+    assert runs["local", 2] == runs["local", 1]
+    assert runs["ray", 2] == runs["local", 1]
+    me = f"{socket.gethostname()}:{os.getpid()}"
+    assert workers["local", 1] == {me}
+    assert me not in workers["local", 2] and len(workers["local", 2]) <= 2
+    assert me not in workers["ray", 2] and len(workers["ray", 2]) == 2   # one task per actor
 
 
 def test_seed_planner_run_is_shared_with_its_trajopt_run(tmp):

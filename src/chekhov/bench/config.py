@@ -41,6 +41,9 @@ class BenchConfig:
         share_seed_runs: when both X and X+TrajOpt run on a case, X's run is the seed stage of
             X+TrajOpt's run (same planner, same seed, same limit), recorded under both names:
             halves the cost of RRT* and PRM*, which run to the limit.
+        db_lock_timeout_s: s, how long a database locked by another program is waited for
+            (retried with backoff) before the benchmark stops with a ``BenchError``; runs
+            written before are kept.
     """
 
     scenes: tuple[str, ...]
@@ -59,6 +62,7 @@ class BenchConfig:
     planner_seed: int = 0
     warm_up: bool = True
     share_seed_runs: bool = True
+    db_lock_timeout_s: float = 120.0
 
     def __post_init__(self) -> None:
         from chekhov.bench.registry import PLANNER_NAMES, canonical_planner_name
@@ -90,6 +94,9 @@ class BenchConfig:
         if self.executor not in EXECUTORS:
             raise ChekhovError(f"bench: unknown executor '{self.executor}'; choose one of "
                                f"{list(EXECUTORS)}")
+        if not (isinstance(self.db_lock_timeout_s, int | float) and self.db_lock_timeout_s > 0):
+            raise ChekhovError(f"bench: db_lock_timeout_s must be positive (s), got "
+                               f"{self.db_lock_timeout_s!r}")
         if self.address is not None and self.executor != "ray":
             raise ChekhovError("bench: --address needs --executor ray")
         for scene, path in self.case_files:

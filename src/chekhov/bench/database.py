@@ -26,10 +26,17 @@ Ours only (a side table, so that OMPL's tools see plain numeric runs): ``chekhov
 (runid → runs.id, scene, planner, case_index, case_hash, status text, failure_kind text,
 trajopt_status, timing_json — the breakdown of ``time`` in s —, info_json, worker, dof,
 path / seed_path — float32 little-endian bytes, row-major (T, dof), rad —, waypoints,
-seed_waypoints, finished) and ``chekhov_meta`` (key, value).
+seed_waypoints, finished), ``chekhov_meta`` (key, value), and the bookkeeping of concurrent
+runners (:mod:`chekhov.bench.claims`): ``chekhov_sessions`` (id, host, pid, started,
+heartbeat — Unix time, s —, stale_after_s) and ``chekhov_claims`` (experimentid, plannerid,
+case_index → the session running that run now).
 
-Every run is written in its own transaction, so an interrupted benchmark keeps every run
-written before, and a rerun skips them (:meth:`BenchDatabase.done_cases`).
+Every run is written in its own transaction, together with its share of the experiment's
+``totaltime``, so an interrupted (even SIGKILLed) benchmark keeps every run written before
+and the time they took, and a rerun skips them (:meth:`BenchDatabase.done_cases`). Every
+statement that finds the database locked by another program is retried with backoff for up to
+``lock_timeout_s`` (s); then, and on any other SQLite failure, a :class:`BenchError` names the
+file and what was being done.
 """
 
 from __future__ import annotations
@@ -39,17 +46,19 @@ import json
 import math
 import sqlite3
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 
 from chekhov.bench.files import write_file
 from chekhov.bench.record import RunRecord
-from chekhov.errors import ChekhovError
+from chekhov.errors import BenchError
+
+T = TypeVar("T")
 
 DB_FORMAT = "chekhov-bench"
 DB_VERSION = 1
@@ -59,7 +68,13 @@ OMPL_STATUS = ("Unknown status", "Invalid start", "Invalid goal", "Unrecognized 
                "Timeout", "Approximate solution", "Exact solution", "Crash", "Abort")
 _STATUS_OF = {"solved": 6, "timeout": 4, "seed_timeout": 4, "invalid_start": 1,
               "seed_invalid_start": 1, "no_ik": 2, "seed_no_ik": 2, "invalid_goal": 2,
-              "crash": 7}
+              "crash": 7, "case_error": 8}
+
+# How long a locked database is waited for (s) before the runner stops with a BenchError.
+DEFAULT_LOCK_TIMEOUT_S = 120.0
+_BUSY_WAIT_S = 1.0        # SQLite's own wait per attempt (s), at most
+_FIRST_BACKOFF_S = 0.05   # pause after the first locked attempt (s), doubled up to ...
+_MAX_BACKOFF_S = 2.0
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS experiments
@@ -95,6 +110,12 @@ CREATE TABLE IF NOT EXISTS chekhov_runs
     seed_waypoints INTEGER, finished DATETIME,
     FOREIGN KEY (runid) REFERENCES runs(id) ON DELETE CASCADE);
 CREATE TABLE IF NOT EXISTS chekhov_meta (key TEXT PRIMARY KEY, value TEXT);
+CREATE TABLE IF NOT EXISTS chekhov_sessions
+    (id INTEGER PRIMARY KEY AUTOINCREMENT, host TEXT, pid INTEGER, started REAL,
+    heartbeat REAL, stale_after_s REAL);
+CREATE TABLE IF NOT EXISTS chekhov_claims
+    (experimentid INTEGER, plannerid INTEGER, case_index INTEGER, session INTEGER,
+    claimed REAL, PRIMARY KEY (experimentid, plannerid, case_index));
 """
 
 _VIEWS_BASE = """SELECT plannerid, plannerConfigs.name AS plannerName, experimentid,
@@ -105,19 +126,36 @@ _VIEWS_BASE = """SELECT plannerid, plannerConfigs.name AS plannerName, experimen
 
 class BenchDatabase:
     """A benchmark database file (created on first use). Use as a context manager or call
-    :meth:`close`. Only one process writes (the runner's main process)."""
+    :meth:`close`. Several runners may share one (each writes its own runs; see
+    :mod:`chekhov.bench.claims`).
 
-    def __init__(self, path: str | Path) -> None:
+    Args:
+        path: the SQLite file.
+        lock_timeout_s: s, how long a statement that finds the database locked by another
+            program is retried (with backoff) before a :class:`BenchError`.
+    """
+
+    def __init__(self, path: str | Path,
+                 lock_timeout_s: float = DEFAULT_LOCK_TIMEOUT_S) -> None:
+        if not (isinstance(lock_timeout_s, int | float) and lock_timeout_s > 0):
+            raise BenchError(f"{path}: lock_timeout_s must be positive (s), got "
+                             f"{lock_timeout_s!r}")
         self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.lock_timeout_s = float(lock_timeout_s)
         try:
-            self.conn = sqlite3.connect(self.path, timeout=30.0, isolation_level=None)
-            self.conn.row_factory = sqlite3.Row
-            self.conn.execute("PRAGMA foreign_keys = ON")
-            self._create()
-        except sqlite3.DatabaseError as e:
-            raise ChekhovError(f"{self.path}: not a usable SQLite benchmark database: {e}")\
-                from e
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self.conn = sqlite3.connect(self.path, isolation_level=None,
+                                        timeout=min(_BUSY_WAIT_S, self.lock_timeout_s / 4))
+        except (OSError, sqlite3.Error) as e:
+            raise BenchError(f"{self.path}: cannot open the benchmark database: {e}") from e
+        self.conn.row_factory = sqlite3.Row
+        try:
+            self.read("opening the database",
+                      lambda c: c.execute("PRAGMA foreign_keys = ON"))
+            self.write("opening the database", self._create)
+        except BaseException:
+            self.conn.close()
+            raise
 
     def __enter__(self) -> BenchDatabase:
         return self
@@ -130,69 +168,114 @@ class BenchDatabase:
 
     @contextmanager
     def transaction(self) -> Iterator[sqlite3.Connection]:
-        """Commit on success, roll back on any error (including KeyboardInterrupt)."""
+        """One write transaction: committed on success, rolled back on any error (including
+        KeyboardInterrupt and a failed commit). Not retried; see :meth:`write`."""
+        self.conn.execute("BEGIN IMMEDIATE")
         try:
-            self.conn.execute("BEGIN IMMEDIATE")
             yield self.conn
+            self.conn.commit()
         except BaseException:
-            self.conn.rollback()
+            if self.conn.in_transaction:
+                self.conn.rollback()
             raise
-        self.conn.commit()
+
+    def write(self, what: str, fn: Callable[[sqlite3.Connection], T],
+              timeout_s: float | None = None) -> T:
+        """``fn(conn)`` in one write transaction, retried while the database is locked (see
+        :meth:`_retry`); ``what`` says what is being written, for the error message."""
+        def attempt() -> T:
+            with self.transaction() as c:
+                return fn(c)
+        return self._retry(what, attempt, timeout_s)
+
+    def read(self, what: str, fn: Callable[[sqlite3.Connection], T]) -> T:
+        """``fn(conn)`` outside a transaction, retried while the database is locked."""
+        return self._retry(what, lambda: fn(self.conn))
+
+    def _retry(self, what: str, attempt: Callable[[], T], timeout_s: float | None = None) -> T:
+        """``attempt()``, again after a pause (0.05 s, doubling up to 2 s) while it finds the
+        database locked, for up to ``timeout_s`` (default ``lock_timeout_s``) s in all. Then,
+        or on any other SQLite error, a :class:`BenchError` naming the file and ``what``."""
+        limit = self.lock_timeout_s if timeout_s is None else timeout_s
+        deadline = time.monotonic() + limit
+        pause = _FIRST_BACKOFF_S
+        while True:
+            try:
+                return attempt()
+            except sqlite3.OperationalError as e:
+                left = deadline - time.monotonic()
+                if not _locked(e):
+                    raise BenchError(f"{self.path}: SQLite failed while {what}: {e}") from e
+                if left <= 0:
+                    raise BenchError(
+                        f"{self.path}: the database was locked by another program for more "
+                        f"than {limit:g} s while {what}; every run written before is kept. "
+                        "Close that program (an open sqlite3 shell or transaction), then rerun "
+                        "the same command to do the rest") from e
+                time.sleep(min(pause, left))
+                pause = min(2 * pause, _MAX_BACKOFF_S)
+            except sqlite3.DatabaseError as e:
+                raise BenchError(f"{self.path}: not a usable SQLite benchmark database "
+                                 f"({what}): {e}") from e
 
     # --- schema ---------------------------------------------------------------------------
-    def _create(self) -> None:
-        c = self.conn
-        meta = dict(c.execute("SELECT name, sql FROM sqlite_master WHERE name='chekhov_meta'")
-                    .fetchall())
+    def _create(self, c: sqlite3.Connection) -> None:
+        """Check the file's format and create what is missing, in one transaction (so that
+        a runner starting beside another never sees half a schema)."""
+        meta = c.execute("SELECT name FROM sqlite_master WHERE name='chekhov_meta'").fetchall()
         if meta:
             fmt = dict(c.execute("SELECT key, value FROM chekhov_meta").fetchall())
             if fmt.get("format") != DB_FORMAT or int(fmt.get("version", 0)) > DB_VERSION:
-                raise ChekhovError(f"{self.path}: benchmark database format "
-                                   f"{fmt.get('format')} version {fmt.get('version')}; this "
-                                   f"chekhov writes {DB_FORMAT} version {DB_VERSION}")
+                raise BenchError(f"{self.path}: benchmark database format "
+                                 f"{fmt.get('format')} version {fmt.get('version')}; this "
+                                 f"chekhov writes {DB_FORMAT} version {DB_VERSION}")
         elif c.execute("SELECT count(*) FROM sqlite_master WHERE name='runs'").fetchone()[0]:
-            raise ChekhovError(f"{self.path}: an OMPL benchmark database not written by "
-                               "chekhov; use another --db file")
-        c.executescript(_SCHEMA)
-        with self.transaction():
-            c.executemany("INSERT OR IGNORE INTO chekhov_meta VALUES (?, ?)",
-                          [("format", DB_FORMAT), ("version", str(DB_VERSION)),
-                           ("units", "time s, lengths rad, paths float32 rad (T, dof)")])
-            c.executemany("INSERT OR IGNORE INTO enums VALUES (?, ?, ?)",
-                          [("status", i, s) for i, s in enumerate(OMPL_STATUS)]
-                          + [("failure_kind", 0, "none")])
-            c.execute("DROP VIEW IF EXISTS bestPlannerConfigsPerExperiment")
-            c.execute("CREATE VIEW bestPlannerConfigsPerExperiment AS SELECT plannerid, "
-                      "experimentid, MIN(avg_solved) AS avg_solved, avg_total_time FROM "
-                      "(SELECT plannerid, plannerName, experimentid, AVG(solved) AS "
-                      "avg_solved, AVG(total_time) AS avg_total_time FROM (" + _VIEWS_BASE +
-                      ") GROUP BY plannerid, experimentid) GROUP BY plannerName, experimentid "
-                      "ORDER BY avg_solved DESC, avg_total_time ASC")
-            c.execute("DROP VIEW IF EXISTS bestPlannerConfigs")
-            c.execute("CREATE VIEW bestPlannerConfigs AS SELECT plannerid, MIN(avg_solved) AS "
-                      "avg_solved, avg_total_time FROM (SELECT plannerid, plannerName, "
-                      "AVG(solved) AS avg_solved, AVG(total_time) AS avg_total_time FROM ("
-                      + _VIEWS_BASE + ") GROUP BY plannerid) GROUP BY plannerName ORDER BY "
-                      "avg_solved DESC, avg_total_time ASC")
+            raise BenchError(f"{self.path}: an OMPL benchmark database not written by "
+                             "chekhov; use another --db file")
+        for statement in _SCHEMA.split(";"):
+            if statement.strip():
+                c.execute(statement)
+        c.executemany("INSERT OR IGNORE INTO chekhov_meta VALUES (?, ?)",
+                      [("format", DB_FORMAT), ("version", str(DB_VERSION)),
+                       ("units", "time s, lengths rad, paths float32 rad (T, dof)")])
+        c.executemany("INSERT OR IGNORE INTO enums VALUES (?, ?, ?)",
+                      [("status", i, s) for i, s in enumerate(OMPL_STATUS)]
+                      + [("failure_kind", 0, "none")])
+        c.execute("DROP VIEW IF EXISTS bestPlannerConfigsPerExperiment")
+        c.execute("CREATE VIEW bestPlannerConfigsPerExperiment AS SELECT plannerid, "
+                  "experimentid, MIN(avg_solved) AS avg_solved, avg_total_time FROM "
+                  "(SELECT plannerid, plannerName, experimentid, AVG(solved) AS "
+                  "avg_solved, AVG(total_time) AS avg_total_time FROM (" + _VIEWS_BASE +
+                  ") GROUP BY plannerid, experimentid) GROUP BY plannerName, experimentid "
+                  "ORDER BY avg_solved DESC, avg_total_time ASC")
+        c.execute("DROP VIEW IF EXISTS bestPlannerConfigs")
+        c.execute("CREATE VIEW bestPlannerConfigs AS SELECT plannerid, MIN(avg_solved) AS "
+                  "avg_solved, avg_total_time FROM (SELECT plannerid, plannerName, "
+                  "AVG(solved) AS avg_solved, AVG(total_time) AS avg_total_time FROM ("
+                  + _VIEWS_BASE + ") GROUP BY plannerid) GROUP BY plannerName ORDER BY "
+                  "avg_solved DESC, avg_total_time ASC")
 
     def tables(self) -> list[str]:
-        return [r[0] for r in self.conn.execute(
-            "SELECT name FROM sqlite_master WHERE type='table' ORDER BY name")]
+        return [r[0] for r in self.read("listing tables", lambda c: c.execute(
+            "SELECT name FROM sqlite_master WHERE type='table' ORDER BY name").fetchall())]
 
     # --- experiments and planner configs ----------------------------------------------
     def experiment_id(self, scene: str, scene_hash: str, case_seed: int, case_source: str,
                       time_limit_s: float, exact_substeps: int, resolution: float,
                       setup: str = "", version: str = "", hostname: str = "",
                       cpuinfo: str = "") -> int:
-        """The experiment of these settings (created when new)."""
-        row = self.conn.execute(
-            "SELECT id FROM experiments WHERE name=? AND scene_hash=? AND case_seed=? AND "
-            "case_source=? AND timelimit=? AND exact_substeps=? AND resolution=?",
-            (scene, scene_hash, case_seed, case_source, time_limit_s, exact_substeps,
-             resolution)).fetchone()
-        if row is not None:
-            return int(row[0])
-        with self.transaction() as c:
+        """The experiment of these settings (created when new; looked up and created in one
+        transaction, so runners starting together share it)."""
+        key = (scene, scene_hash, case_seed, case_source, time_limit_s, exact_substeps,
+               resolution)
+
+        def get(c: sqlite3.Connection) -> int:
+            row = c.execute(
+                "SELECT id FROM experiments WHERE name=? AND scene_hash=? AND case_seed=? AND "
+                "case_source=? AND timelimit=? AND exact_substeps=? AND resolution=? "
+                "ORDER BY id", key).fetchone()
+            if row is not None:
+                return int(row[0])
             cur = c.execute(
                 "INSERT INTO experiments (name, totaltime, timelimit, memorylimit, runcount, "
                 "version, hostname, cpuinfo, date, seed, setup, scene_hash, case_seed, "
@@ -204,32 +287,35 @@ class BenchDatabase:
             assert cur.lastrowid is not None
             return int(cur.lastrowid)
 
+        return self.write(f"recording the experiment of scene '{scene}'", get)
+
     def planner_id(self, name: str, settings: str) -> int:
         """The plannerConfigs row of (name, settings) (created when new), as OMPL does."""
-        row = self.conn.execute("SELECT id FROM plannerConfigs WHERE name=? AND settings=?",
-                                (name, settings)).fetchone()
-        if row is not None:
-            return int(row[0])
-        with self.transaction() as c:
+        def get(c: sqlite3.Connection) -> int:
+            row = c.execute("SELECT id FROM plannerConfigs WHERE name=? AND settings=? "
+                            "ORDER BY id", (name, settings)).fetchone()
+            if row is not None:
+                return int(row[0])
             cur = c.execute("INSERT INTO plannerConfigs (name, settings) VALUES (?, ?)",
                             (name, settings))
             assert cur.lastrowid is not None
             return int(cur.lastrowid)
 
-    def add_experiment_time(self, experiment_id: int, seconds: float, runcount: int) -> None:
-        """Add to ``totaltime`` (s) and raise ``runcount`` (cases per planner) to at least
-        ``runcount``."""
-        with self.transaction() as c:
-            c.execute("UPDATE experiments SET totaltime = totaltime + ?, runcount = "
-                      "MAX(runcount, ?) WHERE id=?", (seconds, runcount, experiment_id))
+        return self.write(f"recording the configuration of planner {name}", get)
+
+    def set_runcount(self, experiment_id: int, runcount: int) -> None:
+        """Raise ``runcount`` (cases per planner) to at least ``runcount``."""
+        self.write("setting the experiment's run count", lambda c: c.execute(
+            "UPDATE experiments SET runcount = MAX(runcount, ?) WHERE id=?",
+            (runcount, experiment_id)))
 
     # --- runs ---------------------------------------------------------------------------
     def done_cases(self, experiment_id: int, planner_id: int) -> dict[int, str]:
         """case index → case hash of the runs already stored."""
-        rows = self.conn.execute(
+        rows = self.read("reading the runs already done", lambda c: c.execute(
             "SELECT r.case_index, k.case_hash FROM runs r LEFT JOIN chekhov_runs k "
             "ON k.runid = r.id WHERE r.experimentid=? AND r.plannerid=?",
-            (experiment_id, planner_id)).fetchall()
+            (experiment_id, planner_id)).fetchall())
         return {int(a): str(b) for a, b in rows}
 
     def _failure_kind_value(self, c: sqlite3.Connection, kind: str) -> int:
@@ -242,50 +328,67 @@ class BenchDatabase:
         c.execute("INSERT INTO enums VALUES ('failure_kind', ?, ?)", (v, kind))
         return v
 
-    def insert_run(self, experiment_id: int, planner_id: int, rec: RunRecord) -> int:
-        """Store one run (one transaction); returns runs.id. A run already stored for the same
-        case is left as it is (its id is returned)."""
-        with self.transaction() as c:
-            row = c.execute("SELECT id FROM runs WHERE experimentid=? AND plannerid=? AND "
-                            "case_index=?", (experiment_id, planner_id, rec.case_index)
-                            ).fetchone()
-            if row is not None:
-                return int(row[0])
-            fk = self._failure_kind_value(c, rec.failure_kind)
-            cur = c.execute(
-                "INSERT INTO runs (experimentid, plannerid, time, solved, status, "
-                "approximate_solution, solution_length, correct_solution, memory, case_index, "
-                "success, exact_collision, failure_kind, waypoints, seed_time, trajopt_time, "
-                "seed_length, seed_found, trajopt_ok, fallback_to_seed, exact_check_time) "
-                "VALUES (?, ?, ?, ?, ?, 0, ?, ?, NULL, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
-                (experiment_id, planner_id, rec.time_s, int(rec.solved),
-                 ompl_status(rec.status), _num(rec.path_length), _flag(rec.exact_valid),
-                 rec.case_index, int(rec.success),
-                 None if rec.exact_valid is None else int(not rec.exact_valid), fk,
-                 None if rec.path is None else len(rec.path), _num(rec.seed_time_s),
-                 _num(rec.trajopt_time_s), _num(rec.seed_length), _flag(rec.seed_found),
-                 _flag(rec.trajopt_ok), _flag(rec.fallback_to_seed), rec.exact_check_s))
-            runid = cur.lastrowid
-            assert runid is not None
-            dof = (rec.path.shape[1] if rec.path is not None else
-                   rec.seed_path.shape[1] if rec.seed_path is not None else None)
-            c.execute(
-                "INSERT INTO chekhov_runs VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, "
-                "?, ?)",
-                (runid, rec.scene, rec.planner, rec.case_index, rec.case_hash, rec.status,
-                 rec.failure_kind, rec.trajopt_status, json.dumps(rec.timing_s),
-                 json.dumps(rec.info, default=str), rec.worker, dof, pack_path(rec.path),
-                 None if rec.path is None else len(rec.path), pack_path(rec.seed_path),
-                 None if rec.seed_path is None else len(rec.seed_path),
-                 time.strftime("%Y-%m-%d %H:%M:%S")))
-            return int(runid)
+    def insert_run(self, experiment_id: int, planner_id: int, rec: RunRecord,
+                   seconds: float = 0.0) -> int | None:
+        """Store one run and add ``seconds`` (s) to its experiment's ``totaltime``, in one
+        transaction that also drops any claim on the run; returns runs.id. A run already
+        stored for the same case is left as it is, and None returned."""
+        def insert(c: sqlite3.Connection) -> int | None:
+            key = (experiment_id, planner_id, rec.case_index)
+            c.execute("DELETE FROM chekhov_claims WHERE experimentid=? AND plannerid=? AND "
+                      "case_index=?", key)
+            if c.execute("SELECT id FROM runs WHERE experimentid=? AND plannerid=? AND "
+                         "case_index=?", key).fetchone() is not None:
+                return None
+            runid = self._insert_rows(c, experiment_id, planner_id, rec)
+            c.execute("UPDATE experiments SET totaltime = totaltime + ? WHERE id=?",
+                      (float(seconds), experiment_id))
+            return runid
+
+        return self.write(f"writing the run of {rec.planner} on case {rec.case_index} of "
+                          f"'{rec.scene}'", insert)
+
+    def _insert_rows(self, c: sqlite3.Connection, experiment_id: int, planner_id: int,
+                     rec: RunRecord) -> int:
+        """The ``runs`` and ``chekhov_runs`` rows of ``rec``; returns runs.id."""
+        fk = self._failure_kind_value(c, rec.failure_kind)
+        cur = c.execute(
+            "INSERT INTO runs (experimentid, plannerid, time, solved, status, "
+            "approximate_solution, solution_length, correct_solution, memory, case_index, "
+            "success, exact_collision, failure_kind, waypoints, seed_time, trajopt_time, "
+            "seed_length, seed_found, trajopt_ok, fallback_to_seed, exact_check_time) "
+            "VALUES (?, ?, ?, ?, ?, 0, ?, ?, NULL, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+            (experiment_id, planner_id, rec.time_s, int(rec.solved),
+             ompl_status(rec.status), _num(rec.path_length), _flag(rec.exact_valid),
+             rec.case_index, int(rec.success),
+             None if rec.exact_valid is None else int(not rec.exact_valid), fk,
+             None if rec.path is None else len(rec.path), _num(rec.seed_time_s),
+             _num(rec.trajopt_time_s), _num(rec.seed_length), _flag(rec.seed_found),
+             _flag(rec.trajopt_ok), _flag(rec.fallback_to_seed), rec.exact_check_s))
+        runid = cur.lastrowid
+        assert runid is not None
+        dof = (rec.path.shape[1] if rec.path is not None else
+               rec.seed_path.shape[1] if rec.seed_path is not None else None)
+        c.execute(
+            "INSERT INTO chekhov_runs VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, "
+            "?, ?)",
+            (runid, rec.scene, rec.planner, rec.case_index, rec.case_hash, rec.status,
+             rec.failure_kind, rec.trajopt_status, json.dumps(rec.timing_s),
+             json.dumps(rec.info, default=str), rec.worker, dof, pack_path(rec.path),
+             None if rec.path is None else len(rec.path), pack_path(rec.seed_path),
+             None if rec.seed_path is None else len(rec.seed_path),
+             time.strftime("%Y-%m-%d %H:%M:%S")))
+        return int(runid)
 
     # --- reading ------------------------------------------------------------------------
     def experiments(self) -> list[dict[str, Any]]:
-        return [dict(r) for r in self.conn.execute("SELECT * FROM experiments ORDER BY id")]
+        return [dict(r) for r in self.read("reading the experiments", lambda c: c.execute(
+            "SELECT * FROM experiments ORDER BY id").fetchall())]
 
     def planner_configs(self) -> list[dict[str, Any]]:
-        return [dict(r) for r in self.conn.execute("SELECT * FROM plannerConfigs ORDER BY id")]
+        return [dict(r) for r in self.read("reading the planner configurations", lambda c:
+                                           c.execute("SELECT * FROM plannerConfigs ORDER BY "
+                                                     "id").fetchall())]
 
     def rows(self, experiment_ids: list[int] | None = None, planners: list[str] | None = None,
              max_case: int | None = None, paths: bool = False) -> list[dict[str, Any]]:
@@ -315,7 +418,7 @@ class BenchDatabase:
                + (" WHERE " + " AND ".join(where) if where else "")
                + " ORDER BY r.experimentid, p.name, r.case_index")
         out = []
-        for row in self.conn.execute(sql, args):
+        for row in self.read("reading the runs", lambda c: c.execute(sql, args).fetchall()):
             d = dict(row)
             d["timing"] = json.loads(d.pop("timing_json") or "{}")
             d["info"] = json.loads(d.pop("info_json") or "{}")
@@ -361,6 +464,12 @@ def unpack_path(blob: bytes | None, dof: int | None) -> NDArray[np.float64] | No
     if blob is None or dof is None:
         return None
     return np.frombuffer(blob, dtype="<f4").astype(np.float64).reshape(-1, int(dof))
+
+
+def _locked(e: sqlite3.OperationalError) -> bool:
+    """``e`` says the database (or a table) is locked by another connection."""
+    name = getattr(e, "sqlite_errorname", "")
+    return name.startswith(("SQLITE_BUSY", "SQLITE_LOCKED")) or "locked" in str(e)
 
 
 def _num(x: float) -> float | None:

@@ -9,24 +9,30 @@ a :class:`~chekhov.bench.database.BenchDatabase`, resumable.
 Flow: the main process loads each scene, its cases (``cached_solvable_cases`` or a case file)
 and, for Roadmap+TrajOpt, its roadmap (built and saved once, before any worker starts, so
 workers only load it); it records each planner's configuration (plannerConfigs) and skips the
-(scene, planner, case) runs the database already holds — checking that a stored run was made on the
-same case (content hash). The remaining runs go to the executor (local processes by default,
-or Ray); each finished run is written in its own transaction as it arrives, so an
-interruption loses nothing already written. Where X and X+TrajOpt both run on a case, one run
-serves both (:func:`share_seed_runs`).
+(scene, planner, case) runs the database already holds — checking that a stored run was made on
+the same case (content hash). The remaining runs go to the executor (local processes by
+default, or Ray), each claimed in the database just before it starts, so that runners sharing
+the database split the work (:mod:`chekhov.bench.claims`). Each finished run is written in its
+own transaction as it arrives, with its time added to its experiment's ``totaltime``, so an
+interruption — even SIGKILL — loses nothing already written. A case that cannot be run is
+recorded as that run's failure (:meth:`BenchWorker.run_all`) and logged. Where X and X+TrajOpt
+both run on a case, one run serves both (:func:`share_seed_runs`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
+import logging
 import os
 import platform
 import socket
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from chekhov.bench.cases import CaseSet
+from chekhov.bench.claims import ClaimedTasks, Key, Session
 from chekhov.bench.config import BenchConfig
 from chekhov.bench.database import BenchDatabase
 from chekhov.bench.executors import run_tasks
@@ -35,9 +41,15 @@ from chekhov.bench.registry import PlannerSpec, seed_planner_name, settings_text
 from chekhov.bench.solvability import cached_solvable_cases
 from chekhov.bench.task import RunTask, case_hash
 from chekhov.bench.worker import load_roadmap_for
-from chekhov.errors import ChekhovError
+from chekhov.errors import BenchError, ChekhovError
 from chekhov.roadmap.graph import Roadmap
 from chekhov.world import World
+
+_log = logging.getLogger(__name__)
+
+# s without a heartbeat after which a runner's claims are void (plus 3 time limits: one run
+# of the in-process executor goes between two heartbeats)
+STALE_AFTER_S = 60.0
 
 
 @dataclass(frozen=True)
@@ -46,7 +58,10 @@ class BenchOutcome:
 
     Attributes:
         db_path: the database. experiment_ids: scene → experiments.id.
-        planned: runs selected in all; skipped: already in the database; ran: run now.
+        planned: runs selected in all; skipped: already in the database at the start; ran:
+            run and written by this call; by_others: written meanwhile by another runner on
+            the same database (not run here). When the call completes, planned = skipped +
+            ran + by_others.
         time_s: s, wall time of the call. workers: processes or actors used.
     """
 
@@ -57,9 +72,20 @@ class BenchOutcome:
     ran: int
     time_s: float
     workers: int
+    by_others: int = 0
 
     def experiment_id(self, scene: str) -> int:
         return dict(self.experiment_ids)[scene]
+
+
+@dataclass
+class _Plan:
+    """The runs still to do: experiments and planner configs by scene, tasks in any order."""
+
+    exp_ids: dict[str, int] = field(default_factory=dict)
+    planner_ids: dict[tuple[str, str], int] = field(default_factory=dict)
+    tasks: list[RunTask] = field(default_factory=list)
+    skipped: int = 0
 
 
 def load_cases(world: World, config: BenchConfig) -> tuple[CaseSet, str]:
@@ -82,82 +108,109 @@ def run_benchmark(config: BenchConfig, db_path: str | Path, progress: bool = Tru
     """Run what ``config`` selects into the database at ``db_path`` (see the module doc)."""
     t0 = time.perf_counter()
     db_path = Path(db_path)
-    tasks: list[RunTask] = []
-    skipped = 0
-    with BenchDatabase(db_path) as db:
-        exp_ids: dict[str, int] = {}
-        planner_ids: dict[tuple[str, str], int] = {}
-        per_scene: list[list[RunTask]] = []
+    with BenchDatabase(db_path, config.db_lock_timeout_s) as db:
+        plan = _Plan()
         for scene in config.scenes:
-            world = World.load(scene)
-            cases, source = load_cases(world, config)
-            roadmap = (load_roadmap_for(world, config)
-                       if any(n.startswith("Roadmap+TrajOpt") for n in config.planners)
-                       else None)
-            setup = json.dumps({"scene": world.scene.name, "robot": world.robot.name,
-                                "cases": source, "time_limit_s": config.time_limit_s,
-                                "resolution_rad": config.resolution,
-                                "exact_substeps": config.exact_substeps})
-            eid = db.experiment_id(
-                world.scene.name, world.scene.content_hash(), config.case_seed, source,
-                config.time_limit_s, config.exact_substeps, config.resolution, setup=setup,
-                version=_version(), hostname=socket.gethostname(), cpuinfo=_cpuinfo())
-            exp_ids[scene] = eid
-            scene_tasks: list[RunTask] = []
-            hashes = [case_hash(cases.q_start[i], cases.T_world_ee_goal[i])
-                      for i in range(len(cases))]
-
-            def get_roadmap(r: Roadmap | None = roadmap) -> Roadmap:
-                if r is None:  # pragma: no cover - loaded whenever Roadmap+TrajOpt runs
-                    raise ChekhovError("internal: no roadmap loaded")
-                return r
-
-            for name in config.planners:
-                spec = PlannerSpec(name, config.resolution, config.planner_seed)
-                planner = spec.build(world, get_roadmap)
-                pid = db.planner_id(name, settings_text(spec.settings(planner, roadmap)))
-                planner_ids[(scene, name)] = pid
-                done = db.done_cases(eid, pid)
-                for i in range(len(cases)):
-                    if i in done:
-                        if done[i] != hashes[i]:
-                            raise ChekhovError(
-                                f"{db_path}: the run of {name} on case {i} of '{scene}' was "
-                                f"made on another case (hash {done[i]}, now {hashes[i]}); "
-                                "use another --db file")
-                        skipped += 1
-                        continue
-                    scene_tasks.append(RunTask(scene, name, i, cases.q_start[i],
-                                               cases.T_world_ee_goal[i], config.time_limit_s,
-                                               _run_seed(config.planner_seed, i)))
-            per_scene.append(scene_tasks)
+            _plan_scene(db, db_path, config, scene, plan)
         # case-major order: every scene and planner advances together, so an interrupted
         # benchmark has comparable data and the ETA is representative
-        tasks = sorted((t for ts in per_scene for t in ts),
-                       key=lambda t: (t.case_index, config.scenes.index(t.scene),
-                                      config.planners.index(t.planner)))
+        tasks = sorted(plan.tasks, key=lambda t: (t.case_index, config.scenes.index(t.scene),
+                                                  config.planners.index(t.planner)))
         n_runs = len(tasks)
         if config.share_seed_runs:
             tasks = share_seed_runs(tasks)
         workers = config.local_workers if config.executor == "local" else (config.workers or 0)
-        bar = ProgressBar(n_runs, label=f"bench ({n_runs} runs, {skipped} done before)",
-                          enabled=progress)
-        spent: dict[int, float] = dict.fromkeys(exp_ids.values(), 0.0)
-        ran = 0
-        try:
-            for rec in run_tasks(tasks, config):
-                eid = exp_ids[rec.scene]
-                db.insert_run(eid, planner_ids[(rec.scene, rec.planner)], rec)
-                shared = "seed_stage_of" in rec.info  # its planning time is counted once
-                spent[eid] += (0.0 if shared else rec.time_s) + rec.exact_check_s
+        ran, by_others = _execute(db, config, plan, tasks, n_runs, progress)
+    return BenchOutcome(str(db_path), tuple(plan.exp_ids.items()), n_runs + plan.skipped,
+                        plan.skipped, ran, time.perf_counter() - t0, workers, by_others)
+
+
+def _plan_scene(db: BenchDatabase, db_path: Path, config: BenchConfig, scene: str,
+                plan: _Plan) -> None:
+    """Record the scene's experiment and planner configs in ``plan`` and add the runs the
+    database does not hold yet to ``plan.tasks`` (a stored run must be of the same case)."""
+    world = World.load(scene)
+    cases, source = load_cases(world, config)
+    roadmap = (load_roadmap_for(world, config)
+               if any(n.startswith("Roadmap+TrajOpt") for n in config.planners) else None)
+    setup = json.dumps({"scene": world.scene.name, "robot": world.robot.name,
+                        "cases": source, "time_limit_s": config.time_limit_s,
+                        "resolution_rad": config.resolution,
+                        "exact_substeps": config.exact_substeps})
+    eid = db.experiment_id(
+        world.scene.name, world.scene.content_hash(), config.case_seed, source,
+        config.time_limit_s, config.exact_substeps, config.resolution, setup=setup,
+        version=_version(), hostname=socket.gethostname(), cpuinfo=_cpuinfo())
+    db.set_runcount(eid, config.n_cases)
+    plan.exp_ids[scene] = eid
+    hashes = [case_hash(cases.q_start[i], cases.T_world_ee_goal[i]) for i in range(len(cases))]
+
+    def get_roadmap() -> Roadmap:
+        if roadmap is None:  # pragma: no cover - loaded whenever Roadmap+TrajOpt runs
+            raise ChekhovError("internal: no roadmap loaded")
+        return roadmap
+
+    for name in config.planners:
+        spec = PlannerSpec(name, config.resolution, config.planner_seed)
+        planner = spec.build(world, get_roadmap)
+        pid = db.planner_id(name, settings_text(spec.settings(planner, roadmap)))
+        plan.planner_ids[(scene, name)] = pid
+        done = db.done_cases(eid, pid)
+        for i in range(len(cases)):
+            if i in done:
+                if done[i] != hashes[i]:
+                    raise ChekhovError(
+                        f"{db_path}: the run of {name} on case {i} of '{scene}' was "
+                        f"made on another case (hash {done[i]}, now {hashes[i]}); "
+                        "use another --db file")
+                plan.skipped += 1
+                continue
+            plan.tasks.append(RunTask(scene, name, i, cases.q_start[i],
+                                      cases.T_world_ee_goal[i], config.time_limit_s,
+                                      _run_seed(config.planner_seed, i)))
+
+
+def _execute(db: BenchDatabase, config: BenchConfig, plan: _Plan, tasks: list[RunTask],
+             n_runs: int, progress: bool) -> tuple[int, int]:
+    """Run ``tasks``, each claimed as it starts, and write every record as it arrives with its
+    time added to its experiment's ``totaltime``; returns (runs written, runs found written
+    by another runner)."""
+    def keys(t: RunTask) -> list[Key]:
+        eid = plan.exp_ids[t.scene]
+        out = [(eid, plan.planner_ids[(t.scene, t.planner)], t.case_index)]
+        base = seed_planner_name(t.planner)
+        if t.records_seed_run and base is not None:
+            out.append((eid, plan.planner_ids[(t.scene, base)], t.case_index))
+        return out
+
+    session = Session(db, stale_after_s=STALE_AFTER_S + 3 * config.time_limit_s)
+    source = ClaimedTasks(session, tasks, keys)
+    bar = ProgressBar(n_runs, label=f"bench ({n_runs} runs, {plan.skipped} done before)",
+                      enabled=progress)
+    ran = lost = seen = 0
+    try:
+        for rec in run_tasks(source, config):
+            if "stage" in rec.info:
+                _log.warning("bench: %s on case %d of '%s' could not be run (%s in stage "
+                             "%s): %s; recorded as that run's failure", rec.planner,
+                             rec.case_index, rec.scene, rec.status, rec.info["stage"],
+                             rec.info.get("error"))
+            shared = "seed_stage_of" in rec.info  # its planning time is counted once
+            seconds = (0.0 if shared else rec.time_s) + rec.exact_check_s
+            pid = plan.planner_ids[(rec.scene, rec.planner)]
+            if db.insert_run(plan.exp_ids[rec.scene], pid, rec, seconds) is None:
+                lost += 1   # another runner took this run over and wrote it first
+            else:
                 ran += 1
-                bar.update(failed=not rec.success)
-        finally:
-            bar.close()
-            for eid, s in spent.items():
-                db.add_experiment_time(eid, s, config.n_cases)
-    return BenchOutcome(str(db_path), tuple(exp_ids.items()), n_runs + skipped, skipped,
-                        ran, time.perf_counter() - t0, workers)
+            bar.update(failed=not rec.success)
+            if source.by_others > seen:   # runs other runners wrote count as progress too
+                bar.update(source.by_others - seen)
+                seen = source.by_others
+    finally:
+        bar.close()
+        with contextlib.suppress(BenchError):   # a dead session's claims are void anyway
+            session.close()
+    return ran, lost + source.by_others
 
 
 def share_seed_runs(tasks: list[RunTask]) -> list[RunTask]:

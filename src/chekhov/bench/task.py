@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import hashlib
+from collections import deque
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -53,3 +56,47 @@ def case_hash(q_start: Array, T_world_ee_goal: Array) -> str:
     h = hashlib.sha256(np.ascontiguousarray(q_start, dtype=np.float64).tobytes())
     h.update(np.ascontiguousarray(T_world_ee_goal, dtype=np.float64).tobytes())
     return h.hexdigest()[:16]
+
+
+class TaskSource(Protocol):
+    """Where an executor takes its tasks from, one at a time as a worker frees up (so that
+    concurrent runners can claim runs as they start them; see :mod:`chekhov.bench.claims`)."""
+
+    @property
+    def exhausted(self) -> bool:
+        """No task is left, now or later."""
+        ...
+
+    @property
+    def left(self) -> int:
+        """Tasks left to take, at most."""
+        ...
+
+    def take(self) -> RunTask | None:
+        """The next task; None when none is available now (ask again later)."""
+        ...
+
+    def tick(self) -> None:
+        """Called between results and while waiting (heartbeats)."""
+        ...
+
+
+class TaskList:
+    """A fixed list of tasks as a :class:`TaskSource`."""
+
+    def __init__(self, tasks: Sequence[RunTask]) -> None:
+        self.tasks = deque(tasks)
+
+    @property
+    def exhausted(self) -> bool:
+        return not self.tasks
+
+    @property
+    def left(self) -> int:
+        return len(self.tasks)
+
+    def take(self) -> RunTask | None:
+        return self.tasks.popleft() if self.tasks else None
+
+    def tick(self) -> None:
+        pass

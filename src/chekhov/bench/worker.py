@@ -16,6 +16,7 @@ from chekhov.bench.config import BenchConfig
 from chekhov.bench.record import RunRecord
 from chekhov.bench.registry import PlannerSpec, seed_planner_name
 from chekhov.bench.task import RunTask
+from chekhov.errors import ChekhovError
 from chekhov.planners.base import Planner, PlanResult, path_length
 from chekhov.roadmap.graph import Roadmap
 from chekhov.robot.goal import Goal
@@ -63,38 +64,64 @@ class BenchWorker:
         return p
 
     def run(self, task: RunTask) -> RunRecord:
-        """Run one task. A planner that raises yields a "crash" record (with the error)."""
+        """Run one task. A case that cannot be run yields a failure record (see
+        :meth:`run_all`)."""
         return self.run_all(task)[0]
 
     def run_all(self, task: RunTask) -> list[RunRecord]:
         """Run one task: its record, then (``task.records_seed_run``) the record of its seed
-        stage as the seed planner's own run."""
+        stage as the seed planner's own run.
+
+        Anything raised while running this case — a malformed case (a non-finite goal pose),
+        a planner refusing the query, an exception in planning or in the exact check — is that
+        run's failure, not the end of the benchmark: status "case_error" for a
+        :class:`ChekhovError`, "crash" for any other exception, with ``info`` naming the
+        scene, planner, case index and stage ("goal", "plan", "check") and the error text.
+        Building the world or the planner is not part of a case: its errors propagate."""
         world = self.world(task.scene)
         planner = self.planner(task.scene, task.planner)
-        goal = Goal.pose(np.asarray(task.T_world_ee_goal, dtype=float))
-        q0 = np.asarray(task.q_start, dtype=float)
-        if self.config.warm_up and (task.scene, task.planner) not in self.warm:
-            # first call of a planner in a process: JIT loading, caches; not timed
-            self.warm.add((task.scene, task.planner))
-            with contextlib.suppress(Exception):  # the timed run reports any error
-                planner.plan(q0, goal, min(task.time_limit_s, WARM_UP_LIMIT_S))
-        reseed(planner, task.seed)
-        t0 = time.perf_counter()
+        stage, t0 = "goal", time.perf_counter()
         try:
+            goal = Goal.pose(np.asarray(task.T_world_ee_goal, dtype=float))
+            q0 = np.asarray(task.q_start, dtype=float)
+            stage = "plan"
+            if self.config.warm_up and (task.scene, task.planner) not in self.warm:
+                # first call of a planner in a process: JIT loading, caches; not timed
+                self.warm.add((task.scene, task.planner))
+                with contextlib.suppress(Exception):  # the timed run reports any error
+                    planner.plan(q0, goal, min(task.time_limit_s, WARM_UP_LIMIT_S))
+            reseed(planner, task.seed)
+            t0 = time.perf_counter()
             r = planner.plan(q0, goal, task.time_limit_s)
-        except Exception as e:  # a crashing planner is a result, not the end of the benchmark
-            return [RunRecord(task.scene, task.planner, task.case_index, task.case_hash,
-                              solved=False, status="crash", time_s=time.perf_counter() - t0,
-                              info={"error": f"{type(e).__name__}: {e}",
-                                    "traceback": traceback.format_exc(limit=4)},
-                              worker=self.name)]
-        records = [self._record(world, task, task.planner, r)]
-        seed_run = getattr(planner, "last_seed_result", None)
+            stage = "check"
+            records = [self._record(world, task, task.planner, r)]
+            seed_run = getattr(planner, "last_seed_result", None)
+            base = seed_planner_name(task.planner)
+            if task.records_seed_run and base is not None and seed_run is not None:
+                records.append(self._record(world, task, base, seed_run,
+                                            {"seed_stage_of": task.planner}))
+            return records
+        except Exception as e:  # one bad case is a result, not the end of the benchmark
+            return self._failed(task, stage, e,
+                                0.0 if stage == "goal" else time.perf_counter() - t0)
+
+    def _failed(self, task: RunTask, stage: str, e: Exception, time_s: float
+                ) -> list[RunRecord]:
+        """The failure records of ``task`` (and of its seed stage's planner, when it records
+        that run too) for the error ``e`` raised in ``stage``."""
+        status = "case_error" if isinstance(e, ChekhovError) else "crash"
+        info: dict[str, object] = {
+            "error": f"{type(e).__name__}: {e}", "stage": stage, "scene": task.scene,
+            "case_index": task.case_index, "traceback": traceback.format_exc(limit=4)}
+        names = [task.planner]
         base = seed_planner_name(task.planner)
-        if task.records_seed_run and base is not None and seed_run is not None:
-            records.append(self._record(world, task, base, seed_run,
-                                        {"seed_stage_of": task.planner}))
-        return records
+        if task.records_seed_run and base is not None:
+            names.append(base)
+        shared = [{}, {"seed_stage_of": task.planner}]   # its time is counted once
+        return [RunRecord(task.scene, name, task.case_index, task.case_hash, solved=False,
+                          status=status, time_s=time_s,
+                          info={**info, "planner": name, **extra}, worker=self.name)
+                for name, extra in zip(names, shared, strict=False)]
 
     def _record(self, world: World, task: RunTask, name: str, r: PlanResult,
                 extra_info: dict[str, object] | None = None) -> RunRecord:
