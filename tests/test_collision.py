@@ -154,7 +154,9 @@ def test_exact_path_check_equals_checking_every_configuration(world_of, scene):
     Q = w.robot.sample_uniform(rng, 2000)
     free = Q[w.fast.valid(Q)]
     found = {True: 0, False: 0}
-    for n in range(30):
+    for n in range(90):   # at least 30 paths, more until both kinds are seen 5 times
+        if n >= 30 and min(found.values()) >= 5:
+            break
         q0 = free[rng.integers(len(free))]
         steps = rng.normal(scale=(0.05, 0.2, 0.5)[n % 3], size=(int(rng.integers(1, 5)), 7))
         P = np.clip(np.vstack([q0, q0 + np.cumsum(steps, axis=0)]), w.robot.lower,

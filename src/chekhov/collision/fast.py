@@ -17,13 +17,17 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from chekhov.collision import dense_path, kernels, validity
-from chekhov.collision.grid import build_grid
+from chekhov.collision.gjk import HULL
+from chekhov.collision.grid import build_grid, build_surface_grid, point_field
 from chekhov.collision.primitives import (
     Primitive,
     cluster_primitives,
+    fixed_points,
     geometry_primitives,
+    hull_parts,
     pack,
     shape_primitive,
+    split_triangles,
 )
 from chekhov.errors import RobotError
 from chekhov.robot.robot import Robot
@@ -31,6 +35,12 @@ from chekhov.robot.spheres import SphereModel, build_sphere_model
 from chekhov.scene.model import Scene, Shape
 
 Array = NDArray[np.float64]
+# m: how far apart a confirmation (GJK on the covered geometry) must prove two shapes. Its
+# certificate is an exact support-function bound, so this only has to absorb rounding and the
+# exact checker's own tolerances (coal's GJK: about 1e-6 m). The spheres' padding (1-2 mm)
+# would call every configuration within it colliding: a third of those within 5 mm of contact
+# (measured with benchmarks/collision.py on the near-contact configurations).
+CONFIRM_PAD = 1e-4
 BoolArray = NDArray[np.bool_]
 _FIXED_GRID_CACHE: dict[tuple, list] = {}
 
@@ -117,7 +127,9 @@ class FastChecker:
                 fixed += prims
             fixed_pairs += [(group_of[g], i) for i in fixed_of[f]]
         self.fixed_primitives = fixed
+        self._fixed_of = fixed_of   # fixed geometry → its primitives' indices
         self._fixed = pack(fixed)
+        self._gexact = (*self._gexact, *fixed_points(fixed))  # and gsurf: _build_grids
         self._fixed_pairs = np.array(sorted(fixed_pairs), dtype=np.int64).reshape(-1, 2)
         G = len(gr)
         fstart = np.searchsorted(self._fixed_pairs[:, 0], np.arange(G + 1)).astype(np.int64)
@@ -175,11 +187,19 @@ class FastChecker:
             _FIXED_GRID_CACHE.clear()  # keep one robot's grids at most
             _FIXED_GRID_CACHE[rkey] = [
                 build_grid(lo, hi, hh, pack([self.fixed_primitives[i] for i in key]))
-                for hh in (h, 3 * h) for key in sets]
+                for hh in (h, 3 * h) for key in sets] + self._surface_grids(lo, hi, h, sets)
         fixed_grids = _FIXED_GRID_CACHE[rkey]
         n = len(sets)
-        grids = [build_grid(lo, hi, h, self._static), *fixed_grids[:n]]
-        coarse = [build_grid(lo, hi, 3 * h, self._static), *fixed_grids[n:]]
+        grids = [build_grid(lo, hi, h, self._static), *fixed_grids[:n], *fixed_grids[2 * n:]]
+        coarse = [build_grid(lo, hi, 3 * h, self._static), *fixed_grids[n:2 * n]]
+        # the grid that proves an inner ball touches group g's fixed parts: their own grid when
+        # all are solids, else a surface grid (after the fixed ones), none without inner balls
+        gsurf = gfix.copy()
+        surface = iter(range(n + 1, len(grids)))   # in the order _surface_grids made them
+        for m, key in enumerate(sets, start=1):
+            if any(self.fixed_primitives[i].triangles is not None for i in key):
+                gsurf[gfix == m] = next(surface, -1)
+        self._gexact = (*self._gexact[:13], gsurf)
         self.grids = grids + coarse
         # (origin, h, delta, fine values (M, n0, n1, n2), gfix, coarse h, coarse values,
         #  group visiting order) — what validity.config_collides unpacks
@@ -192,6 +212,32 @@ class FastChecker:
         rate = validity.group_block_rates(sample[:2000], self._chain, self._groups, self._grids)
         order = np.argsort(-rate, kind="stable").astype(np.int64)
         self._grids = (*self._grids[:7], order)
+
+    def _surface_grids(self, lo: Array, hi: Array, h: float, sets: dict[tuple[int, ...], int]
+                       ) -> list:
+        """A surface grid (``grid.build_surface_grid``) for each set of fixed parts that has
+        mesh clusters (none when no sphere has an inner ball): distances to its solids and to
+        points on its meshes' triangles (the corners of pieces with edges of at most 2 cm:
+        every surface point is within 12 mm of one), within the largest inner ball radius
+        plus two voxels."""
+        reach = float(self._rin.max(initial=0.0)) + 2 * h
+        if reach <= 2 * h:
+            return []
+        fields = {}   # per fixed mesh: its point field, shared by the sets holding it
+        for f, idx in self._fixed_of.items():
+            tris = [t for i in idx if (t := self.fixed_primitives[i].triangles) is not None]
+            if len(tris) == len(idx):
+                corners = split_triangles(np.concatenate(tris), 0.02).reshape(-1, 3)
+                fields[f] = point_field(lo, hi, h, corners, reach)
+        out = []
+        for key in sets:
+            owners = [f for f, idx in self._fixed_of.items() if f in fields and idx[0] in key]
+            if owners:
+                solid = pack([self.fixed_primitives[i] for i in key
+                              if self.fixed_primitives[i].triangles is None])
+                out.append(build_surface_grid(lo, hi, h, solid, [fields[f] for f in owners],
+                                              reach))
+        return out
 
     # --- obstacles ----------------------------------------------------------------------
     def _pack_env(self) -> None:
@@ -348,39 +394,64 @@ class FastChecker:
 
 
 def exact_geometry(robot: Robot, geoms: list[int], sp: SphereModel
-                   ) -> tuple[tuple[NDArray[np.int64], Array, Array, Array, Array], Array]:
-    """The covered geometry of each sphere group as a primitive in its joint's frame, and each
-    sphere's inner radius.
+                   ) -> tuple[tuple, Array]:
+    """The covered geometry of each sphere group in its joint's frame, for confirming sphere
+    hits (``validity.py``), and each sphere's inner radius.
 
-    Returns ((kind (G,), R (G, 3, 3), p (G, 3), size (G, 3), pad (G,)), rin (M,)): kind -1
-    where the geometry is no box, cylinder or sphere (its sphere hits are collisions); pad (m)
-    the padding the confirmation test keeps; rin (m) the radius of the ball about each sphere's
-    centre that lies inside its geometry (0 when none or unknown).
+    Returns ((kind (G,), R (G, 3, 3), p (G, 3), size (G, 3), pad (G,), pstart (G+1,),
+    vstart (P+1,), V (NV, 3), centre (P, 3)), rin (M,)). Group g's geometry is a box,
+    cylinder or sphere (kind 0-2, size as the kernels read it) or, for a mesh, the convex
+    hulls of its connected parts (kind ``gjk.HULL``); -1 where neither (its sphere hits are
+    collisions). Its parts are pstart[g]:pstart[g+1] (one with no points for a primitive, one
+    per mesh part), part k's support points V[vstart[k]:vstart[k+1]] in the geometry's frame
+    (R, p) and centre[k] a point inside it. pad (m): the margin the confirmation keeps
+    (:data:`CONFIRM_PAD`, or the spheres' padding when smaller). rin (m): the radius of the
+    ball about each sphere's centre that lies inside its primitive (0 when none, and for
+    meshes: the inner ball tests are for solids).
     """
     G = len(geoms)
     kind = np.full(G, -1, dtype=np.int64)
     R = np.tile(np.eye(3), (G, 1, 1))
     p = np.zeros((G, 3))
     size = np.zeros((G, 3))
-    pad = np.full(G, max(robot.description.spheres.padding, 1e-5))
+    pad = np.full(G, float(np.clip(robot.description.spheres.padding, 1e-5, CONFIRM_PAD)))
     rin = np.zeros(len(sp))
+    parts: list[list[Array]] = []
     cm = robot.collision_model
     for i, gi in enumerate(geoms):
         go = cm.geometryObjects[gi]
         g = go.geometry
+        R[i], p[i] = go.placement.rotation, go.placement.translation
+        parts.append([np.zeros((0, 3))])
         if isinstance(g, coal.Box):
             kind[i], size[i] = kernels.BOX, np.asarray(g.halfSide, dtype=float)
         elif isinstance(g, coal.Cylinder):
             kind[i], size[i] = kernels.CYLINDER, (g.radius, g.halfLength, 0.0)
         elif isinstance(g, coal.Sphere):
             kind[i], size[i] = kernels.SPHERE, (g.radius, 0.0, 0.0)
-        else:
+        elif hasattr(g, "num_tris"):
+            kind[i], parts[i] = HULL, hull_parts(g)
             continue
-        R[i], p[i] = go.placement.rotation, go.placement.translation
+        else:
+            parts[i] = []
+            continue
         for s in np.flatnonzero(sp.geometries == gi):
             d = kernels.signed_distance(kind[i], R[i], p[i], size[i], sp.centers[s])
             rin[s] = max(0.0, -d - 1e-9)
-    return (kind, R, p, size, pad), rin
+    return (kind, R, p, size, pad, *_pack_parts(parts)), rin
+
+
+def _pack_parts(parts: list[list[Array]]
+                ) -> tuple[NDArray[np.int64], NDArray[np.int64], Array, Array]:
+    """(pstart (G+1,), vstart (P+1,), V (NV, 3), centre (P, 3)) of each group's parts (lists
+    of support points, (n, 3) each; n = 0 for a primitive, whose centre is its origin)."""
+    flat = [pts for group in parts for pts in group]
+    pstart = np.cumsum([0] + [len(group) for group in parts]).astype(np.int64)
+    vstart = np.cumsum([0] + [len(pts) for pts in flat]).astype(np.int64)
+    V = np.vstack([np.zeros((0, 3)), *flat]).astype(float)
+    centre = np.array([pts.mean(axis=0) if len(pts) else np.zeros(3) for pts in flat],
+                      dtype=float).reshape(-1, 3)
+    return pstart, vstart, V, centre
 
 
 def pinocchio_joint_placements(robot: Robot, q: Array) -> list[pin.SE3]:

@@ -11,6 +11,12 @@ h being the closed-form support value of each primitive. Anything else (touching
 GJK not converged, a degenerate simplex) answers "collision", so the fast checker stays
 conservative. Encoding as in ``kernels``: kind 0 sphere (radius), 1 box (half extents),
 2 cylinder along its z axis (radius, half length); world pose R (3, 3), p (3,). Metres.
+
+Kind 3 (``HULL``) is a convex polytope given by points V[v0:v1] (n, 3) in its own frame (the
+vertices of a mesh part's convex hull): h(u) = p·u + max over those points of v·(Rᵀu), exact
+for any point set, so the certificate holds for the mesh part whatever the hull's numerics as
+long as the points include every extreme vertex of the part (see ``primitives.hull_parts``).
+Other kinds ignore V, v0, v1.
 """
 
 from __future__ import annotations
@@ -19,12 +25,21 @@ import numpy as np
 from numba import njit
 
 MAX_ITER = 32
+HULL = 3
 
 
 @njit(cache=True, inline="always")
-def support_value(kind, R, p, size, u):  # pragma: no cover - compiled
+def support_value(kind, R, p, size, V, v0, v1, u):  # pragma: no cover - compiled
     """h(u) = max over the primitive of x·u, for any direction u (3,)."""
     h = p[0] * u[0] + p[1] * u[1] + p[2] * u[2]
+    if kind == HULL:
+        l0 = R[0, 0] * u[0] + R[1, 0] * u[1] + R[2, 0] * u[2]
+        l1 = R[0, 1] * u[0] + R[1, 1] * u[1] + R[2, 1] * u[2]
+        l2 = R[0, 2] * u[0] + R[1, 2] * u[1] + R[2, 2] * u[2]
+        best = -np.inf
+        for i in range(v0, v1):
+            best = max(best, V[i, 0] * l0 + V[i, 1] * l1 + V[i, 2] * l2)
+        return h + best
     if kind == 0:
         return h + size[0] * np.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
     if kind == 1:
@@ -37,11 +52,24 @@ def support_value(kind, R, p, size, u):  # pragma: no cover - compiled
 
 
 @njit(cache=True, inline="always")
-def support_point(kind, R, p, size, u, sign, out):  # pragma: no cover - compiled
+def support_point(kind, R, p, size, V, v0, v1, u, sign, out):  # pragma: no cover - compiled
     """out = a point x of the primitive maximising x·(sign·u)."""
     for a in range(3):
         out[a] = p[a]
-    if kind == 0:
+    if kind == HULL:
+        l0 = sign * (R[0, 0] * u[0] + R[1, 0] * u[1] + R[2, 0] * u[2])
+        l1 = sign * (R[0, 1] * u[0] + R[1, 1] * u[1] + R[2, 1] * u[2])
+        l2 = sign * (R[0, 2] * u[0] + R[1, 2] * u[1] + R[2, 2] * u[2])
+        best = -np.inf
+        k = v0
+        for i in range(v0, v1):
+            d = V[i, 0] * l0 + V[i, 1] * l1 + V[i, 2] * l2
+            if d > best:
+                best = d
+                k = i
+        for a in range(3):
+            out[a] += R[a, 0] * V[k, 0] + R[a, 1] * V[k, 1] + R[a, 2] * V[k, 2]
+    elif kind == 0:
         n = np.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
         if n > 0.0:
             for a in range(3):
@@ -151,14 +179,25 @@ def _closest_on_simplex(S, n, v):  # pragma: no cover - compiled
 
 @njit(cache=True)
 def primitives_collide(ka, Ra, pa, sa, kb, Rb, pb, sb, pad):  # pragma: no cover - compiled
-    """False only when primitives A and B are proven more than ``pad`` (m) apart."""
+    """False only when primitives A and B (kinds 0-2) are proven more than ``pad`` (m) apart."""
+    V = np.empty((0, 3))
+    return convex_collide(ka, Ra, pa, sa, V, 0, 0, pa, kb, Rb, pb, sb, V, 0, 0, pb, pad)
+
+
+@njit(cache=True)
+def convex_collide(ka, Ra, pa, sa, Va, a0, a1, ca, kb, Rb, pb, sb, Vb, b0, b1, cb, pad
+                   ):  # pragma: no cover - compiled
+    """False only when convex shapes A and B are proven more than ``pad`` (m) apart.
+
+    Each shape is (kind, R, p, size, V, v0, v1) as in :func:`support_value`, and a point of it
+    (world, m) to start from: ca, cb (e.g. its centre)."""
     S = np.empty((4, 3))
     v = np.empty(3)
     u = np.empty(3)
     xa = np.empty(3)
     xb = np.empty(3)
     for a in range(3):
-        v[a] = pa[a] - pb[a]
+        v[a] = ca[a] - cb[a]
     n = 0
     for _ in range(MAX_ITER):
         nv = np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
@@ -167,11 +206,12 @@ def primitives_collide(ka, Ra, pa, sa, kb, Rb, pb, sb, pad):  # pragma: no cover
         for a in range(3):
             u[a] = v[a] / nv
         # certificate along u: min over A − B of x·u
-        sep = -support_value(ka, Ra, pa, sa, -u) - support_value(kb, Rb, pb, sb, u)
+        sep = (-support_value(ka, Ra, pa, sa, Va, a0, a1, -u)
+               - support_value(kb, Rb, pb, sb, Vb, b0, b1, u))
         if sep > pad + 1e-9:
             return False
-        support_point(ka, Ra, pa, sa, u, -1.0, xa)
-        support_point(kb, Rb, pb, sb, u, 1.0, xb)
+        support_point(ka, Ra, pa, sa, Va, a0, a1, u, -1.0, xa)
+        support_point(kb, Rb, pb, sb, Vb, b0, b1, u, 1.0, xb)
         w0, w1, w2 = xa[0] - xb[0], xa[1] - xb[1], xa[2] - xb[2]
         # no progress: GJK has converged on a distance ≤ pad (the certificate failed)
         if nv * nv - (v[0] * w0 + v[1] * w1 + v[2] * w2) <= 1e-12 * nv * nv:

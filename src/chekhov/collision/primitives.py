@@ -8,10 +8,14 @@ import coal
 import numpy as np
 from numpy.typing import NDArray
 from scipy.cluster.vq import kmeans2
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import ConvexHull, QhullError
 
+from chekhov.collision.gjk import HULL
 from chekhov.collision.kernels import BOX, CYLINDER, SPHERE
 from chekhov.errors import RobotError
-from chekhov.robot.spheres import mesh_triangles
+from chekhov.robot.spheres import mesh_arrays, mesh_triangles
 from chekhov.scene.model import Shape
 
 Array = NDArray[np.float64]
@@ -20,11 +24,18 @@ Array = NDArray[np.float64]
 @dataclass(frozen=True)
 class Primitive:
     """One convex primitive in the world: ``kind`` (sphere 0, box 1, cylinder 2), pose T (4, 4),
-    ``size`` (3,) as the kernels read it (radius; half extents; radius and half length)."""
+    ``size`` (3,) as the kernels read it (radius; half extents; radius and half length).
+    ``points`` (n, 3), in the primitive's frame (m): when the primitive stands for part of a
+    mesh (a box around a triangle cluster), the support points of that part's convex hull,
+    which lies inside the box: sphere hits on the box are confirmed on them. ``triangles``
+    (t, 3, 3), world (m): then that part's triangles (the surface grids are built from them).
+    """
 
     kind: int
     T: Array
     size: Array
+    points: Array | None = None
+    triangles: Array | None = None
 
 
 def shape_primitive(shape: Shape, T_world_obj: Array) -> Primitive:
@@ -38,9 +49,12 @@ def shape_primitive(shape: Shape, T_world_obj: Array) -> Primitive:
 
 
 def geometry_primitives(geometry: coal.CollisionGeometry, T_world_geom: Array,
-                        mesh_boxes: int = 64) -> list[Primitive]:
+                        mesh_boxes: int = 64, max_edge: float = 0.05) -> list[Primitive]:
     """Primitives that contain a coal shape: itself when primitive; for a mesh, the bounding
-    boxes of ``mesh_boxes`` triangle clusters (each triangle lies inside its cluster's box)."""
+    boxes of ``mesh_boxes`` clusters of its triangles, cut first into pieces with edges of at
+    most ``max_edge`` (m) so that a cluster is a compact patch (each piece lies inside its
+    cluster's box), with the support points of each cluster's convex hull
+    (``Primitive.points``), on which sphere hits are confirmed."""
     if isinstance(geometry, coal.Sphere):
         return [Primitive(SPHERE, T_world_geom, np.array([geometry.radius, 0, 0]))]
     if isinstance(geometry, coal.Box):
@@ -57,20 +71,84 @@ def geometry_primitives(geometry: coal.CollisionGeometry, T_world_geom: Array,
             out.append(Primitive(SPHERE, T, np.array([geometry.radius, 0, 0])))
         return out
     if hasattr(geometry, "num_tris"):
-        tris = mesh_triangles(geometry)
+        tris = split_triangles(mesh_triangles(geometry), max_edge)
         k = min(mesh_boxes, len(tris))
         _, labels = kmeans2(tris.mean(axis=1), k, seed=0, minit="++")
         out = []
+        Rg, pg = T_world_geom[:3, :3], T_world_geom[:3, 3]
         for c in range(k):
             pts = tris[labels == c].reshape(-1, 3)
             if len(pts) == 0:
                 continue
             lo, hi = pts.min(axis=0), pts.max(axis=0)
             T = T_world_geom.copy()
-            T[:3, 3] = T_world_geom[:3, :3] @ ((lo + hi) / 2) + T_world_geom[:3, 3]
-            out.append(Primitive(BOX, T, np.maximum((hi - lo) / 2, 1e-4)))
+            T[:3, 3] = Rg @ ((lo + hi) / 2) + pg
+            out.append(Primitive(BOX, T, np.maximum((hi - lo) / 2, 1e-4),
+                                 support_points(pts - (lo + hi) / 2),
+                                 tris[labels == c] @ Rg.T + pg))
         return out
     raise RobotError(f"unsupported collision shape {type(geometry).__name__}")
+
+
+def split_triangles(tris: Array, max_edge: float) -> Array:
+    """Triangles (F, 3, 3) halved across their longest edge until every edge is at most
+    ``max_edge`` (m) long: (F', 3, 3), covering the same surface."""
+    done = []
+    while len(tris):
+        e = np.linalg.norm(tris - np.roll(tris, -1, axis=1), axis=2)  # edge i: corner i → i+1
+        long = e.max(axis=1) > max_edge
+        done.append(tris[~long])
+        t, k = tris[long], np.argmax(e[long], axis=1)
+        a = t[np.arange(len(t)), k]
+        b = t[np.arange(len(t)), (k + 1) % 3]
+        c = t[np.arange(len(t)), (k + 2) % 3]
+        m = 0.5 * (a + b)
+        tris = np.concatenate([np.stack([a, m, c], axis=1), np.stack([m, b, c], axis=1)])
+    return np.concatenate(done) if done else tris
+
+
+def support_points(pts: Array) -> Array:
+    """The points of pts (n, 3) that the maximum of x·u over pts can need, for any u: the
+    vertices of their convex hull and every point qhull found on a facet (option Qc), so that
+    the support function over them is the one over all of pts, whatever qhull's rounding; all
+    of pts when qhull fails (a flat or tiny set)."""
+    try:
+        hull = ConvexHull(pts, qhull_options="Qc")
+    except (QhullError, ValueError):
+        return np.array(pts, dtype=float)
+    keep = np.union1d(hull.vertices, hull.coplanar[:, 0]).astype(np.int64)
+    return np.array(pts[keep], dtype=float)
+
+
+def fixed_points(prims: list[Primitive]
+                 ) -> tuple[NDArray[np.int64], NDArray[np.int64], Array, Array]:
+    """What the fast checker confirms a sphere hit on fixed part i against: (kind (F,):
+    ``gjk.HULL`` where the primitive carries support points, else its own kind; vstart (F+1,)
+    and V (NV, 3): points V[vstart[i]:vstart[i+1]] in the primitive's frame; centre (F, 3): a
+    point inside it, world, m)."""
+    kind = np.array([HULL if p.points is not None else p.kind for p in prims],
+                    dtype=np.int64).reshape(len(prims))
+    pts = [p.points if p.points is not None else np.zeros((0, 3)) for p in prims]
+    vstart = np.cumsum([0] + [len(x) for x in pts]).astype(np.int64)
+    V = np.vstack([np.zeros((0, 3)), *pts]).astype(float)
+    centre = np.array([p.T[:3, :3] @ x.mean(axis=0) + p.T[:3, 3] if len(x) else p.T[:3, 3]
+                       for p, x in zip(prims, pts, strict=True)], dtype=float).reshape(-1, 3)
+    return kind, vstart, V, centre
+
+
+def hull_parts(geometry: coal.CollisionGeometry) -> list[Array]:
+    """Support points (:func:`support_points`) of each connected part of a coal mesh, in the
+    mesh's frame (m): the confirmation tests a part's convex hull, which contains it. Parts
+    are the connected components of the triangles' edges; vertices used by no triangle are
+    ignored."""
+    verts, tris = mesh_arrays(geometry)
+    if len(tris) == 0:
+        raise RobotError("collision mesh has no triangles")
+    edges = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]]])
+    graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])),
+                       shape=(len(verts), len(verts)))
+    _, label = connected_components(graph, directed=False)
+    return [support_points(verts[label == c]) for c in np.unique(label[tris[:, 0]])]
 
 
 def pack(prims: list[Primitive]) -> tuple[NDArray[np.int64], Array, Array, Array]:

@@ -5,11 +5,14 @@ obstacles and fixed robot parts are first ruled out by their distance grids, gro
 coarse grids, which stay in cache) then sphere (on the fine ones).
 A sphere that may touch a primitive is settled in three steps: its inner ball (a ball inside
 the covered geometry, radius ``rin``) touching the primitive is a certain collision; otherwise
-the covered geometry itself (a box, cylinder or sphere when the robot has one: ``gexact``) is
-tested against the primitive with :func:`gjk.primitives_collide`, once per (geometry,
-primitive) and configuration; geometries with no primitive (meshes) count the sphere hit as a
-collision. Self-collision: group bounding spheres, then sphere pairs, then the same three
-steps on the two geometries. Sphere centres are only computed for groups that need them.
+the covered geometry itself (``gexact``: a box, cylinder or sphere, or the convex hull of each
+connected part of a mesh) is tested against the primitive with :func:`gjk.convex_collide`,
+once per (geometry, primitive) and configuration; a geometry with neither counts the sphere
+hit as a collision. Self-collision: group bounding spheres, then sphere pairs, then the same
+three steps on the two geometries (every part of one against every part of the other). Fixed
+robot parts are the boxes that contain their meshes (``primitives.geometry_primitives``), so a
+hit is confirmed against such a box. Every "free" answer is so proved for the solid hulls,
+which contain the meshes. Sphere centres are only computed for groups that need them.
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from chekhov.collision.gjk import primitives_collide
+from chekhov.collision.gjk import HULL, convex_collide
 from chekhov.collision.kernels import chain_fk, grid_classify, signed_distance
 
 
@@ -34,6 +37,29 @@ def _place(Rb, pb, gk, gj, eR, ep, g, Rw, pw):  # pragma: no cover - compiled
 
 
 @njit(cache=True, inline="always")
+def _part_centre(gexact, k, Rw, pw, out):  # pragma: no cover - compiled
+    """World position of part k's centre, its geometry at (Rw, pw)."""
+    hc = gexact[8]
+    for a in range(3):
+        out[a] = Rw[a, 0] * hc[k, 0] + Rw[a, 1] * hc[k, 1] + Rw[a, 2] * hc[k, 2] + pw[a]
+
+
+@njit(cache=True, inline="always")
+def _confirm(gexact, g, Rw, pw, kb, Rb, pb, sb, Vb, b0, b1, cb, pad, c
+             ):  # pragma: no cover - compiled
+    """False only when every part of group g's geometry (world pose Rw, pw) is proved more
+    than ``pad`` (m) from shape B (as in :func:`gjk.convex_collide`, a point cb inside it);
+    c (3,) is work space."""
+    gk, _, _, es, _, pstart, vstart, hv = gexact[:8]
+    for k in range(pstart[g], pstart[g + 1]):
+        _part_centre(gexact, k, Rw, pw, c)
+        if convex_collide(gk[g], Rw, pw, es[g], hv, vstart[k], vstart[k + 1], c,
+                          kb, Rb, pb, sb, Vb, b0, b1, cb, pad):
+            return True
+    return False
+
+
+@njit(cache=True, inline="always")
 def _centers(Rb, pb, sj, sc, a, b, cw):  # pragma: no cover - compiled
     for i in range(a, b):
         j = sj[i]
@@ -43,17 +69,19 @@ def _centers(Rb, pb, sj, sc, a, b, cw):  # pragma: no cover - compiled
 
 
 @njit(cache=True, inline="always")
-def _group_hits(g, src, kind, R, p, size, cand, ncand, cw, sr, rin, gstart, gk, pend, npend
-                ):  # pragma: no cover - compiled
+def _group_hits(g, src, kind, R, p, size, ck, cand, ncand, cw, sr, rin, gstart, gk, pend,
+                npend):  # pragma: no cover - compiled
     """Spheres of group g against the primitives cand[:ncand]: -1 when the geometry certainly
     touches one (an inner ball does, or the geometry has no exact primitive); otherwise the
-    new count of pending exact tests, (g, src, primitive) appended to ``pend``."""
+    new count of pending exact tests, (g, src, primitive) appended to ``pend``. ``ck``: the
+    primitives' confirmation kinds; an inner ball proves nothing against a ``HULL`` one (a box
+    around part of a mesh, not a solid)."""
     for ii in range(ncand):
         o = cand[ii]
         hit = False
         for s in range(gstart[g], gstart[g + 1]):
             d = signed_distance(kind[o], R[o], p[o], size[o], cw[s])
-            if d < rin[s]:
+            if d < rin[s] and rin[s] > 0.0 and ck[o] != HULL:
                 return -1
             if d < sr[s]:
                 hit = True
@@ -83,7 +111,8 @@ def config_collides(q, chain, spheres, groups, static, dyn, fixed, fixed_csr, se
     fk, fR, fp, fs = fixed
     _, _, fallow, clc, clr, cls, clm = fixed_csr
     origin, h, delta, V, gfix, hc, Vc, order = grids
-    gk, eR, ep, es, pad = gexact
+    gk, eR, ep, es, pad = gexact[:5]
+    fck, fvs, fV, fcen, gsurf = gexact[9:14]
     ih = 1.0 / h
     ihc = 1.0 / hc
     chain_fk(q, parent, R0, p0, axis, Rb, pb)
@@ -110,8 +139,8 @@ def config_collides(q, chain, spheres, groups, static, dyn, fixed, fixed_csr, se
         _centers(Rb, pb, sj, sc, gstart[g], gstart[g + 1], cw)
         done[g] = True
         if nd > 0:
-            npend = _group_hits(g, 2, dk, dR, dp, ds, cand, nd, cw, sr, rin, gstart, gk, pend,
-                                npend)
+            npend = _group_hits(g, 2, dk, dR, dp, ds, dk, cand, nd, cw, sr, rin, gstart, gk,
+                                pend, npend)
             if npend < 0:
                 return True
         if env != 1:
@@ -129,34 +158,34 @@ def config_collides(q, chain, spheres, groups, static, dyn, fixed, fixed_csr, se
                     if signed_distance(sk[o], sR[o], sp[o], ss[o], gw[g]) < gr[g]:
                         cand[n] = o
                         n += 1
-                npend = _group_hits(g, 0, sk, sR, sp, ss, cand, n, cw, sr, rin, gstart, gk,
-                                    pend, npend)
+                npend = _group_hits(g, 0, sk, sR, sp, ss, sk, cand, n, cw, sr, rin, gstart,
+                                    gk, pend, npend)
                 if npend < 0:
                     return True
         if fix != 1:
             maybe = False
             for s in range(gstart[g], gstart[g + 1]):
                 f = grid_classify(origin, ih, h, delta, V, fg, cw[s], sr[s])
-                if f == -1 and rin[s] > 0.0 and \
-                        grid_classify(origin, ih, h, delta, V, fg, cw[s], rin[s]) == -1:
+                if f == -1 and rin[s] > 0.0 and gsurf[g] >= 0 and \
+                        grid_classify(origin, ih, h, delta, V, gsurf[g], cw[s], rin[s]) == -1:
                     return True
                 if f != 1:
                     maybe = True
             if maybe:
                 n = 0
-                for c in range(clc.shape[0]):  # clusters of fixed parts, then their members
-                    dc = np.sqrt((gw[g, 0] - clc[c, 0]) ** 2 + (gw[g, 1] - clc[c, 1]) ** 2
-                                 + (gw[g, 2] - clc[c, 2]) ** 2)
-                    if dc - clr[c] >= gr[g]:
+                for cl in range(clc.shape[0]):  # clusters of fixed parts, then their members
+                    dc = np.sqrt((gw[g, 0] - clc[cl, 0]) ** 2 + (gw[g, 1] - clc[cl, 1]) ** 2
+                                 + (gw[g, 2] - clc[cl, 2]) ** 2)
+                    if dc - clr[cl] >= gr[g]:
                         continue
-                    for ii in range(cls[c], cls[c + 1]):
+                    for ii in range(cls[cl], cls[cl + 1]):
                         o = clm[ii]
                         if fallow[g, o] and \
                                 signed_distance(fk[o], fR[o], fp[o], fs[o], gw[g]) < gr[g]:
                             cand[n] = o
                             n += 1
-                npend = _group_hits(g, 1, fk, fR, fp, fs, cand, n, cw, sr, rin, gstart, gk,
-                                    pend, npend)
+                npend = _group_hits(g, 1, fk, fR, fp, fs, fck, cand, n, cw, sr, rin, gstart,
+                                    gk, pend, npend)
                 if npend < 0:
                     return True
     for i in range(self_pairs.shape[0]):
@@ -178,7 +207,7 @@ def config_collides(q, chain, spheres, groups, static, dyn, fixed, fixed_csr, se
                 y = cw[s, 1] - cw[t, 1]
                 z = cw[s, 2] - cw[t, 2]
                 d2 = x * x + y * y + z * z
-                if d2 < (rin[s] + rin[t]) ** 2:
+                if d2 < (rin[s] + rin[t]) ** 2 and rin[s] > 0.0 and rin[t] > 0.0:
                     return True
                 if d2 < (sr[s] + sr[t]) ** 2:
                     hit = True
@@ -192,19 +221,29 @@ def config_collides(q, chain, spheres, groups, static, dyn, fixed, fixed_csr, se
     pw = np.empty(3)
     Rw2 = np.empty((3, 3))
     pw2 = np.empty(3)
+    c = np.empty(3)
+    c2 = np.empty(3)
+    pstart, vstart, hv = gexact[5], gexact[6], gexact[7]
     for i in range(npend):
         g, src, o = pend[i, 0], pend[i, 1], pend[i, 2]
         _place(Rb, pb, gk, gj, eR, ep, g, Rw, pw)
         if src == 3:
             _place(Rb, pb, gk, gj, eR, ep, o, Rw2, pw2)
-            hit = primitives_collide(gk[g], Rw, pw, es[g], gk[o], Rw2, pw2, es[o],
-                                     pad[g] + pad[o])
-        elif src == 0:
-            hit = primitives_collide(gk[g], Rw, pw, es[g], sk[o], sR[o], sp[o], ss[o], pad[g])
-        elif src == 1:
-            hit = primitives_collide(gk[g], Rw, pw, es[g], fk[o], fR[o], fp[o], fs[o], pad[g])
+            for k in range(pstart[o], pstart[o + 1]):
+                _part_centre(gexact, k, Rw2, pw2, c2)
+                if _confirm(gexact, g, Rw, pw, gk[o], Rw2, pw2, es[o], hv, vstart[k],
+                            vstart[k + 1], c2, pad[g] + pad[o], c):
+                    return True
+            continue
+        if src == 0:
+            hit = _confirm(gexact, g, Rw, pw, sk[o], sR[o], sp[o], ss[o], hv, 0, 0, sp[o],
+                           pad[g], c)
+        elif src == 1:  # a fixed part: the hull of its mesh cluster, or its primitive
+            hit = _confirm(gexact, g, Rw, pw, fck[o], fR[o], fp[o], fs[o], fV, fvs[o],
+                           fvs[o + 1], fcen[o], pad[g], c)
         else:
-            hit = primitives_collide(gk[g], Rw, pw, es[g], dk[o], dR[o], dp[o], ds[o], pad[g])
+            hit = _confirm(gexact, g, Rw, pw, dk[o], dR[o], dp[o], ds[o], hv, 0, 0, dp[o],
+                           pad[g], c)
         if hit:
             return True
     return False

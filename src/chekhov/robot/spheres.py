@@ -40,13 +40,20 @@ class SphereModel:
         return len(self.radii)
 
 
-def mesh_triangles(geometry: coal.CollisionGeometry) -> Array:
-    """Triangles of a coal BVH mesh as corner coordinates, shape (F, 3, 3)."""
-    verts = np.asarray(geometry.vertices(), dtype=float)
+def mesh_arrays(geometry: coal.CollisionGeometry) -> tuple[Array, NDArray[np.int64]]:
+    """Vertices (V, 3) (m, the mesh's frame) and triangle corner indices (F, 3) of a coal BVH
+    mesh."""
+    verts = np.asarray(geometry.vertices(), dtype=float).reshape(-1, 3)
     idx = np.array(
         [[t[0], t[1], t[2]] for t in (geometry.tri_indices(i) for i in range(geometry.num_tris))],
         dtype=np.int64,
-    )
+    ).reshape(-1, 3)
+    return verts, idx
+
+
+def mesh_triangles(geometry: coal.CollisionGeometry) -> Array:
+    """Triangles of a coal BVH mesh as corner coordinates, shape (F, 3, 3)."""
+    verts, idx = mesh_arrays(geometry)
     return verts[idx]
 
 
