@@ -44,3 +44,26 @@ def test_locked_joints_reach_the_robot_and_the_content_hash(tmp_path):
 def test_bad_locked_joints_are_located_errors(value, match):
     with pytest.raises(SceneError, match=match):
         scene_from_dict({"format": 1, "name": "t", "robot": "panda", "locked_joints": value})
+
+
+def test_a_cached_roadmap_is_rebuilt_when_a_locked_joint_changes(tmp_path):
+    """The roadmap cache is keyed on the robot's content, not its name: a roadmap built with
+    the fingers at 0.04 m is not reused with them at 0.01 m (same scene, same robot name)."""
+    from chekhov import Robot
+    from chekhov.roadmap.config import RoadmapConfig
+    from chekhov.roadmap.io import load_or_build_roadmap
+
+    scene = scene_from_dict({"format": 1, "name": "empty", "robot": "panda"})
+    config = RoadmapConfig(n_nodes=40, semantic=False, n_wrist_nodes=0, k_paths=1)
+    path = tmp_path / "empty.npz"
+    said: list[str] = []
+    first = World(scene, Robot.load("panda", locked=FINGERS))
+    built = load_or_build_roadmap(first, config, path, said.append)
+    assert built.meta.robot_hash == first.robot.content_hash()
+    assert load_or_build_roadmap(first, config, path, said.append).meta.created == \
+        built.meta.created                                      # same robot: reused
+    assert not any("rebuilding" in s for s in said)
+    other = World(scene, Robot.load("panda", locked={**FINGERS, "panda_finger_joint1": 0.01}))
+    rebuilt = load_or_build_roadmap(other, config, path, said.append)
+    assert any("rebuilding" in s and "content hash" in s for s in said), said
+    assert rebuilt.meta.robot_hash == other.robot.content_hash() != built.meta.robot_hash

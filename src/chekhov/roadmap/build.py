@@ -281,7 +281,8 @@ def build_roadmap(world: World, config: RoadmapConfig | None = None,
     build_s = time.perf_counter() - t0
     meta = RoadmapMeta(
         format_version=FORMAT_VERSION, robot=world.robot.name, scene=world.scene.name,
-        scene_hash=world.scene.content_hash(), config=config, build_s=build_s,
+        scene_hash=world.scene.content_hash(), robot_hash=world.robot.content_hash(),
+        config=config, build_s=build_s,
         created=datetime.now(UTC).isoformat(timespec="seconds"), dropped_nodes=dropped,
         node_counts={k: int((kind == i).sum()) for i, k in enumerate(NODE_KINDS)},
         notes=b.notes)

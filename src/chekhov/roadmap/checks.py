@@ -76,6 +76,9 @@ def check_meta(path: Path, m: np.ndarray | None, magic: str) -> dict[str, Any]:
         if not ok(meta[key]):
             raise RoadmapError(f"{path}: roadmap metadata field '{key}' must be {expected}, "
                                f"got {meta[key]!r:.60}")
+    if not isinstance(meta.get("robot_hash", ""), str):   # optional: absent in older files
+        raise RoadmapError(f"{path}: roadmap metadata field 'robot_hash' must be a string, "
+                           f"got {meta['robot_hash']!r:.60}")
     return {**meta, "config": _config(path, meta["config"])}
 
 

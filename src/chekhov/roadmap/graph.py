@@ -25,6 +25,8 @@ class RoadmapMeta:
     Attributes:
         format_version: file format (``FORMAT_VERSION`` when written by this code).
         robot: robot name; scene: scene name; scene_hash: ``Scene.content_hash()``.
+        robot_hash: ``Robot.content_hash()`` (URDF, locked joints, spheres, base pose; "" in
+            files written before it was recorded, which then match no robot).
         build_s: wall time of the build, s. created: UTC time, ISO 8601.
         dropped_nodes: nodes outside the largest connected component, removed.
         node_counts: nodes per kind after pruning, e.g. {"uniform": 995, ...}.
@@ -41,6 +43,7 @@ class RoadmapMeta:
     dropped_nodes: int
     node_counts: dict[str, int] = field(default_factory=dict)
     notes: dict[str, object] = field(default_factory=dict)
+    robot_hash: str = ""
 
 
 @dataclass(frozen=True, eq=False)

@@ -72,7 +72,8 @@ def save_roadmap(roadmap: Roadmap, path: str | Path) -> Path:
     path = Path(path)
     m = roadmap.meta
     meta = {"magic": _MAGIC, "format_version": m.format_version, "robot": m.robot,
-            "scene": m.scene, "scene_hash": m.scene_hash, "config": m.config.to_dict(),
+            "scene": m.scene, "scene_hash": m.scene_hash, "robot_hash": m.robot_hash,
+            "config": m.config.to_dict(),
             "build_s": m.build_s, "created": m.created, "dropped_nodes": m.dropped_nodes,
             "node_counts": m.node_counts, "notes": m.notes}
     arrays = {k: getattr(roadmap, k) for k in _ARRAYS}
@@ -177,6 +178,12 @@ def check_compatible(meta: dict[str, Any], world: World, path: str | Path) -> No
     problems = []
     if meta["robot"] != world.robot.name:
         problems.append(f"robot '{meta['robot']}' (world: '{world.robot.name}')")
+    else:
+        rh = world.robot.content_hash()
+        if meta.get("robot_hash", "") != rh:
+            problems.append(f"robot '{meta['robot']}' with content hash "
+                            f"{meta.get('robot_hash', '')[:12] or '(none recorded)'} (world: "
+                            f"hash {rh[:12]}: its URDF, locked joints, spheres or base differ)")
     h = world.scene.content_hash()
     if meta["scene_hash"] != h:
         problems.append(f"scene '{meta['scene']}' with content hash {meta['scene_hash'][:12]} "
@@ -203,7 +210,8 @@ def load_roadmap(path: str | Path, world: World | None = None) -> Roadmap:
         format_version=meta["format_version"], robot=meta["robot"], scene=meta["scene"],
         scene_hash=meta["scene_hash"], config=meta["config"], build_s=float(meta["build_s"]),
         created=meta["created"], dropped_nodes=meta["dropped_nodes"],
-        node_counts=dict(meta["node_counts"]), notes=dict(meta["notes"]))
+        node_counts=dict(meta["node_counts"]), notes=dict(meta["notes"]),
+        robot_hash=meta.get("robot_hash", ""))
     return Roadmap(meta=rm_meta, **arrays)
 
 
