@@ -4,8 +4,10 @@
 
 The kitchen comes from the TrajOpt package's ``data/kitchen.env.xml`` (OpenRAVE format: box
 ``extents`` are half extents, ``translation`` the centre, ``quat`` w x y z); every box is kept
-with its extents and position and given a semantic class. The other three scenes are designed
-here for the Baxter left arm, as described in the paper. chekhov never reads the XML at run time.
+with its extents and position and given a semantic class. The other three Baxter scenes are
+designed here for the Baxter left arm, as described in the paper; the two Panda scenes
+(``panda_table_shelf``, ``panda_cage``) for a Franka Panda on a bench, reaching under a shelf
+board and into an enclosure open towards it. chekhov never reads the XML at run time.
 """
 
 from __future__ import annotations
@@ -117,6 +119,74 @@ def shelf_boxes() -> dict[str, Any]:
             "robot": "baxter_left", "base_pose": BASE, "objects": objs, "regions": regions}
 
 
+PANDA_FINGERS = {"panda_finger_joint1": 0.04, "panda_finger_joint2": 0.04}   # open, m
+PANDA_BASE = {"xyz": [0.0, 0.0, 0.0], "rpy": [0.0, 0.0, 0.0]}
+
+
+def bench(x0: float = 0.22, x1: float = 0.95, width: float = 1.3) -> list[dict[str, Any]]:
+    """A bench top at z = 0 (the Panda's base height) in front of the robot, from x0 to x1."""
+    return [box("bench", "table", [x1 - x0, width, 0.04], [(x0 + x1) / 2, 0.0, -0.02])]
+
+
+def panda_table_shelf() -> dict[str, Any]:
+    """Objects to pick on a bench, two of them under a shelf board held by two side panels."""
+    top = [{"generate": {"approaches": ["top", "front"], "standoff": 0.10, "depth": 0.03}}]
+    front = [{"generate": {"approaches": ["front"], "standoff": 0.10, "depth": 0.03}}]
+    sx, sy, sz, w, t = 0.62, 0.30, 0.32, 0.50, 0.02   # shelf centre x, y, board height, width
+    objs = bench() + [
+        box("shelf_board", "shelf", [0.30, w, t], [sx, sy, sz + t / 2]),
+        box("shelf_side_0", "shelf", [0.30, t, sz], [sx, sy - w / 2 + t / 2, sz / 2]),
+        box("shelf_side_1", "shelf", [0.30, t, sz], [sx, sy + w / 2 - t / 2, sz / 2]),
+        box("under_0", "box", [0.06, 0.06, 0.12], [sx - 0.02, sy - 0.10, 0.06], grasps=front),
+        box("under_1", "box", [0.05, 0.08, 0.09], [sx + 0.03, sy + 0.10, 0.045], grasps=front),
+        box("on_shelf", "box", [0.06, 0.06, 0.10], [sx, sy, sz + t + 0.05], grasps=top),
+        box("open_0", "box", [0.06, 0.06, 0.12], [0.45, -0.15, 0.06], grasps=top),
+        box("open_1", "box", [0.05, 0.05, 0.16], [0.60, -0.35, 0.08], grasps=top),
+        {"name": "can", "class": "box", "shape": "cylinder", "size": [0.035, 0.12],
+         "pose": {"xyz": [0.40, 0.05, 0.06], "rpy": [0, 0, 0]},
+         "grasps": [{"generate": {"approaches": ["top"], "standoff": 0.10, "depth": 0.03}}]},
+    ]
+    return {"name": "panda_table_shelf",
+            "description": "A Franka Panda at a bench: objects to pick in the open, on a shelf "
+                           "board and under it (reach in below the board).",
+            "robot": "panda", "base_pose": PANDA_BASE, "locked_joints": PANDA_FINGERS,
+            "objects": objs,
+            "regions": [{"name": "above_bench", "center": [0.5, -0.2, 0.25],
+                         "size": [0.5, 0.6, 0.4], "weight": 2.0},
+                        {"name": "under_shelf", "center": [sx, sy, 0.17],
+                         "size": [0.28, w - 0.06, 0.2], "weight": 3.0}]}
+
+
+def panda_cage() -> dict[str, Any]:
+    """An enclosure (a cage) on the bench, open towards the robot with a bar across the
+    opening: objects inside to reach past the bar, others beside it."""
+    top = [{"generate": {"approaches": ["top", "front"], "standoff": 0.10, "depth": 0.03}}]
+    front = [{"generate": {"approaches": ["front"], "standoff": 0.10, "depth": 0.03}}]
+    x0, x1, w, h, t = 0.42, 0.78, 0.46, 0.42, 0.02   # open face at x0, back wall at x1
+    cx, cy = (x0 + x1) / 2, 0.05
+    objs = bench() + [
+        box("cage_back", "container", [t, w, h], [x1 - t / 2, cy, h / 2]),
+        box("cage_side_0", "container", [x1 - x0, t, h], [cx, cy - w / 2 + t / 2, h / 2]),
+        box("cage_side_1", "container", [x1 - x0, t, h], [cx, cy + w / 2 - t / 2, h / 2]),
+        box("cage_roof", "container", [x1 - x0, w, t], [cx, cy, h + t / 2]),
+        {"name": "cage_bar", "class": "container", "shape": "cylinder", "size": [0.012, w],
+         "pose": {"xyz": [x0 + 0.01, cy, 0.30], "rpy": [round(math.pi / 2, 6), 0, 0]}},
+        box("inside_0", "box", [0.06, 0.06, 0.12], [cx + 0.03, cy - 0.10, 0.06], grasps=front),
+        box("inside_1", "box", [0.05, 0.07, 0.14], [cx + 0.06, cy + 0.08, 0.07], grasps=front),
+        box("beside_0", "box", [0.06, 0.06, 0.12], [0.45, -0.36, 0.06], grasps=top),
+        box("beside_1", "box", [0.06, 0.08, 0.10], [0.40, 0.42, 0.05], grasps=top),
+    ]
+    return {"name": "panda_cage",
+            "description": "A Franka Panda at a bench with a cage open towards it and a bar "
+                           "across the opening: reach in past the bar; boxes beside the cage.",
+            "robot": "panda", "base_pose": PANDA_BASE, "locked_joints": PANDA_FINGERS,
+            "objects": objs,
+            "regions": [{"name": "inside_cage", "center": [cx, cy, 0.15],
+                         "size": [x1 - x0 - 0.06, w - 0.06, 0.2], "weight": 3.0},
+                        {"name": "beside_cage", "center": [0.45, 0.0, 0.2],
+                         "size": [0.3, 0.9, 0.3], "weight": 1.0}]}
+
+
 KITCHEN_CLASSES = [
     ("dishwasher_door", "door"), ("dishwasher_handle", "handle"), ("freezer_handle", "handle"),
     ("fridge_door", "door"), ("freezer_door", "door"), ("fridge", "fridge"),
@@ -179,7 +249,8 @@ def main() -> None:
     ap.add_argument("--kitchen", type=Path,
                     default=Path(__file__).resolve().parents[2] / "shared/data/kitchen.env.xml")
     args = ap.parse_args()
-    for scene in (tabletop_pole(), tabletop_container(), shelf_boxes(), kitchen(args.kitchen)):
+    for scene in (tabletop_pole(), tabletop_container(), shelf_boxes(), kitchen(args.kitchen),
+                  panda_table_shelf(), panda_cage()):
         path = OUT / f"{scene['name']}.yaml"
         head = f"# {scene['name']}: generated by scripts/make_scenes.py; format in README.md\n"
         path.write_text(head + yaml.safe_dump({"format": 1, **scene}, sort_keys=False,

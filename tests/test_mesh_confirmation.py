@@ -148,3 +148,25 @@ def test_panda_ready_pose_and_pregrasps_are_free_in_both_checkers():
     q_ready = np.array([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785])
     assert w.exact.is_valid(q_ready)
     assert w.fast.valid(q_ready[None])[0]
+
+
+@pytest.mark.parametrize("scene", ["panda_table_shelf", "panda_cage"])
+def test_every_panda_pregrasp_has_a_solution_both_checkers_call_free(scene):
+    """The Panda's sphere model used to reject every grasp goal: now each pre-grasp pose of
+    the built-in Panda scenes has an IK solution that both checkers call free, and no solution
+    is called free by the fast checker alone."""
+    from chekhov import IKError, solve_ik
+
+    w = World.load(scene)
+    rng = np.random.default_rng(sum(map(ord, scene)))
+    poses = [(obj.name, label, T) for obj in w.scene.objects
+             for label, T in obj.pregrasp_poses()]
+    assert len(poses) >= 6
+    for name, label, T in poses:
+        try:
+            Q = solve_ik(w.robot, T, 8, rng=rng)
+        except IKError as e:
+            raise AssertionError(f"{scene}: {name}/{label} unreachable: {e}") from e
+        fast, exact = w.fast.valid(Q), w.exact.valid(Q)
+        assert not np.any(fast & ~exact), (name, label)
+        assert np.any(fast & exact), (name, label, fast, exact)

@@ -8,8 +8,15 @@ MINIMAL = {"name": "t", "objects": [{"name": "b", "shape": "box", "size": [0.1, 
                                      "pose": {"xyz": [1, 0, 0.5]}}]}
 
 
-def test_four_builtin_scenes():
-    assert builtin_scenes() == ["kitchen", "shelf_boxes", "tabletop_container", "tabletop_pole"]
+def test_builtin_scenes_four_for_baxter_two_for_the_panda():
+    assert builtin_scenes() == ["kitchen", "panda_cage", "panda_table_shelf", "shelf_boxes",
+                                "tabletop_container", "tabletop_pole"]
+    assert {load_scene(n).robot for n in builtin_scenes()} == {"baxter_left", "panda"}
+    for name in ("panda_cage", "panda_table_shelf"):
+        scene = load_scene(name)
+        assert dict(scene.locked_joints) == {"panda_finger_joint1": 0.04,
+                                             "panda_finger_joint2": 0.04}
+        assert sum(len(o.grasps) for o in scene.objects) >= 6
 
 
 def test_kitchen_keeps_every_box_of_the_trajopt_file():
