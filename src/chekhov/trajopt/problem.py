@@ -24,6 +24,8 @@ from chekhov.trajopt.config import TrajOptConfig
 from chekhov.world import World
 
 Array = NDArray[np.float64]
+# share of the goal tolerances the optimisation aims at (see Problem.goal_tolerance)
+GOAL_AIM = 0.9
 
 
 class TrajOptError(ChekhovError):
@@ -111,9 +113,13 @@ class TrajOptProblem:
 
     @property
     def goal_tolerance(self) -> Array:
-        """Per-component tolerances (6,) of the goal error: a box inside the tolerance balls."""
+        """Per-component tolerances (6,) of the goal error that the optimisation aims at: a box
+        inside ``GOAL_AIM`` times the tolerance balls, so that an answer the solver accepts
+        (constraints met to its tolerance) meets the goal's own tolerance, as the planners'
+        certification checks it (a path ending on the ball's surface would fail it by 1e-5)."""
         g = self.goal
-        return np.repeat([g.position_tolerance, g.orientation_tolerance], 3) / np.sqrt(3.0)
+        return GOAL_AIM * np.repeat([g.position_tolerance, g.orientation_tolerance], 3) \
+            / np.sqrt(3.0)
 
     # --- evaluation ---------------------------------------------------------------------
     def evaluate(self, Q: Array, timing: dict[str, float] | None = None,
@@ -240,11 +246,13 @@ class TrajOptProblem:
 
     def unmet(self, ev: Evaluation, tol: float = 1e-4) -> set[str]:
         """Names (``constraint_report``'s keys) of the constraints violated by more than tol
-        (collision: clearance below min_clearance_m)."""
-        return {k for k, v in self.constraint_report(ev).items() if v > tol}
+        (collision: clearance below min_clearance_m; the goal: by any amount)."""
+        return {k for k, v in self.constraint_report(ev).items()
+                if v > (0.0 if k.startswith("goal") else tol)}
 
     def satisfied(self, ev: Evaluation, tol: float = 1e-4) -> bool:
-        """Whether every constraint holds (collision to min_clearance_m, the rest to tol)."""
+        """Whether every constraint holds (collision to min_clearance_m, the goal exactly
+        within its tolerance, the rest to tol)."""
         return not self.unmet(ev, tol)
 
 
