@@ -105,6 +105,20 @@ def test_replanning_through_the_python_api_changes_the_trajectory(world, roadmap
         assert "last replan" in v.handles["gui/replan_time"].content
 
 
+def test_the_viewer_shows_and_replans_for_the_panda():
+    """A second robot (meshes, locked fingers) in its own scene: the viewer draws it (visual
+    meshes loaded on first use) and its replans give exactly checked paths."""
+    w = World.load("panda_cage")
+    rm = build_roadmap(w, SMALL)
+    with Viewer(w, rm, generate_cases(w, 2, seed=0), port=free_port(),
+                plan_on_start=False) as v:
+        v.select_case(0, plan=False)
+        r = v.replan()
+        assert r.result.success, r.result.status
+        assert w.exact.path_valid(r.path, substeps=100)
+        assert v.shown_path() is not None
+
+
 def test_taken_port_is_a_clear_error(world, roadmap, cases):
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
