@@ -40,10 +40,10 @@ from typing import IO, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from chekhov.atomic import write_atomic
 from chekhov.errors import CaseFileError, ChekhovError
 from chekhov.npzfile import read_npz
 from chekhov.robot.goal import Goal
-from chekhov.scene.io import write_atomic
 from chekhov.world import World
 
 Array = NDArray[np.float64]

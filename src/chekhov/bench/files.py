@@ -8,7 +8,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from chekhov.scene.io import write_atomic
+from chekhov.atomic import write_atomic
 
 
 def write_file(path: str | Path, write: Callable[[Any], None], mode: str = "w") -> Path:

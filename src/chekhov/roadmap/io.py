@@ -21,7 +21,6 @@ import logging
 import os
 import re
 import socket
-import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -29,6 +28,7 @@ from typing import IO, Any
 
 import numpy as np
 
+from chekhov.atomic import write_atomic
 from chekhov.roadmap.checks import check_arrays, check_meta, read_npz
 from chekhov.roadmap.config import RoadmapConfig
 from chekhov.roadmap.errors import RoadmapError, RoadmapMismatchError
@@ -103,17 +103,7 @@ def _write_atomic(path: Path, write: Callable[[IO[bytes]], None]) -> None:
     """``write(file)`` into a temporary named by host and pid beside ``path``, then rename."""
     path.parent.mkdir(parents=True, exist_ok=True)
     remove_stale_temporaries(path)
-    fd, tmp = tempfile.mkstemp(prefix=_tmp_prefix(path, os.getpid()), suffix=".tmp",
-                               dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            write(f)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    write_atomic(path, write, "wb", prefix=_tmp_prefix(path, os.getpid()), suffix=".tmp")
 
 
 def remove_stale_temporaries(path: str | Path, now: float | None = None) -> list[Path]:

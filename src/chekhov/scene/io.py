@@ -8,9 +8,6 @@ every error is a :class:`SceneError` naming the file, the object and the field, 
 
 from __future__ import annotations
 
-import os
-import tempfile
-from collections.abc import Callable
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -18,14 +15,14 @@ from typing import Any
 import numpy as np
 import yaml
 
+from chekhov.atomic import write_atomic
 from chekhov.errors import SceneError
 from chekhov.scene.model import Scene
 from chekhov.scene.safe_yaml import read_yaml
 from chekhov.scene.validate import FORMAT_VERSION, scene_from_dict
 from chekhov.transforms import matrix_to_quat
 
-__all__ = ["builtin_scenes", "load_scene", "save_scene", "scene_from_dict", "scene_to_dict",
-           "write_atomic"]
+__all__ = ["builtin_scenes", "load_scene", "save_scene", "scene_from_dict", "scene_to_dict"]
 
 
 def _pose_dict(T: np.ndarray) -> dict[str, list[float]]:
@@ -78,19 +75,6 @@ def save_scene(scene: Scene, path: str | Path) -> None:
     write_atomic(Path(path), lambda f: yaml.safe_dump(scene_to_dict(scene), f, sort_keys=False))
 
 
-def write_atomic(path: Path, write: Callable[[Any], None], mode: str = "w") -> None:
-    """Call ``write(file)`` on a temporary file next to ``path``, then rename it into place."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(fd, mode) as f:
-            write(f)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def builtin_scenes() -> list[str]:
