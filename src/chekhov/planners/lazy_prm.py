@@ -100,6 +100,9 @@ class LazyPRM(PlannerBase):
         lo, hi = world.robot.lower, world.robot.upper
         self.max_edge = (self.config.max_edge if self.config.max_edge is not None
                          else 0.2 * float(np.linalg.norm(hi - lo)))
+        # s per node of sampling and connecting (the largest measured lately): a build or an
+        # enhancement that cannot finish by the deadline is not started
+        self._build_s_per_node = 0.0
         _warm_up()
 
     def _plan(self, query: PlanQuery) -> PlanResult:
@@ -121,13 +124,15 @@ class LazyPRM(PlannerBase):
             return done("timeout")
         if not (robot.within_limits(q_start)[0] and self.node_valid(q_start[None])[0]):
             return done("invalid_start")
+        if not self._can_build(cfg.n_init, deadline):
+            return done("timeout")
         t = time.perf_counter()
         X = np.vstack([q_start, goals, robot.sample_uniform(self.rng, cfg.n_init)])
         node_state = np.zeros(len(X), dtype=np.int8)
         node_state[: 1 + len(goals)] = VALID          # start checked above, goals by IK
         edges = connect(X, np.arange(len(X)), cfg.k_neighbors, self.max_edge)
         edge_state = np.zeros(len(edges), dtype=np.int8)
-        timing["roadmap"] = time.perf_counter() - t
+        timing["roadmap"] = self._built(len(X), t)
         goal_idx = np.arange(1, 1 + len(goals))
         stats = {"searches": 0, "node_checks": 0, "edge_checks": 0, "enhancements": 0}
         while True:
@@ -137,7 +142,7 @@ class LazyPRM(PlannerBase):
             info.update(stats, nodes=len(X), edges=len(edges))
             if path is not None:
                 return done("solved", X[path])
-            if time.perf_counter() >= deadline:
+            if not self._can_build(cfg.n_enhance, deadline):
                 return done("timeout")
             t = time.perf_counter()
             new = self._enhance(X, edges, edge_state)
@@ -148,7 +153,17 @@ class LazyPRM(PlannerBase):
             edges = np.vstack([edges, more])
             edge_state = np.concatenate([edge_state, np.zeros(len(more), dtype=np.int8)])
             stats["enhancements"] += 1
-            timing["roadmap"] += time.perf_counter() - t
+            timing["roadmap"] += self._built(len(new), t)
+
+    def _can_build(self, n: int, deadline: float) -> bool:
+        """Whether sampling and connecting n nodes can end before ``deadline``."""
+        return time.perf_counter() + n * self._build_s_per_node < deadline
+
+    def _built(self, n: int, t0: float) -> float:
+        """Record that n nodes took from t0 until now; returns that time (s)."""
+        dt = time.perf_counter() - t0
+        self._build_s_per_node = max(dt / max(n, 1), 0.9 * self._build_s_per_node)
+        return dt
 
     def _enhance(self, X: Array, edges: IntArray, edge_state: NDArray[np.int8]) -> Array:
         """New nodes: uniform, and Gaussian around midpoints of removed edges (seeds)."""
