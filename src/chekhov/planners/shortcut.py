@@ -32,6 +32,8 @@ def shortcut_path(fast: FastChecker, path: Array, resolution: float = 0.02,
             start = np.repeat(P[i:i + 1], len(later), axis=0)
             ok = fast.motions_valid(start, P[later], coarse)
             for cand in later[ok][::-1]:
+                if time.perf_counter() >= deadline:
+                    break
                 if fast.motions_valid(P[i:i + 1], P[cand:cand + 1], resolution)[0]:
                     j = int(cand)
                     break

@@ -77,9 +77,10 @@ class Connector:
         return self.world.fast.motions_valid(Q0, Q1, self.resolution)
 
     def direct(self, q: Array, n_candidates: int, batches: tuple[int, ...] = _BATCHES,
-               ) -> list[tuple[int, float]]:
+               deadline: float = math.inf) -> list[tuple[int, float]]:
         """(node, length rad) of free straight connections from q (itself known free), nearest
-        nodes first, stopping after the first batch that yields one."""
+        nodes first, stopping after the first batch that yields one; no batch after the first
+        is started after ``deadline`` (a ``time.perf_counter()`` value, s)."""
         k = min(n_candidates, self.roadmap.n_nodes)
         d, idx = self.nearest.query(q, k)
         ok_node = self.validity.nodes_valid(idx)
@@ -88,7 +89,7 @@ class Connector:
         lo = 0
         for size in (*batches, len(idx)):
             hi = min(lo + size, len(idx))
-            if hi <= lo:
+            if hi <= lo or (lo > 0 and time.perf_counter() >= deadline):
                 break
             sel = idx[lo:hi]
             ok = self._motions(np.repeat(q[None], len(sel), axis=0), self.roadmap.nodes[sel])
@@ -105,7 +106,8 @@ class Connector:
         wide search (for a configuration the query can do without). No attempt starts, and
         the tree stops growing, after ``deadline`` (a ``time.perf_counter()`` value, s)."""
         found = [Connection(n, c, q[:0].reshape(0, len(q)), "direct")
-                 for n, c in self.direct(q, self.config.connect_candidates)]
+                 for n, c in self.direct(q, self.config.connect_candidates,
+                                         deadline=deadline)]
         if found or not self.config.bridges:
             return found
         attempts: list[Callable[[Array], list[Connection]]] = [
