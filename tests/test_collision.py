@@ -8,10 +8,12 @@ from chekhov.collision.exact import densify
 from chekhov.collision.fast import pinocchio_joint_placements
 
 SCENES = ["tabletop_pole", "tabletop_container", "kitchen", "shelf_boxes"]
+PANDA_SCENES = ["panda_table_shelf", "panda_cage"]
 
 
-def test_numba_fk_matches_pinocchio(world_of, rng):
-    w = world_of("kitchen")
+@pytest.mark.parametrize("scene", ["kitchen", "panda_cage"])
+def test_numba_fk_matches_pinocchio(world_of, rng, scene):
+    w = world_of(scene)
     for q in w.robot.sample_uniform(rng, 10):
         R, p = w.fast.joint_placements(q)
         for k, M in enumerate(pinocchio_joint_placements(w.robot, q)):
@@ -19,12 +21,12 @@ def test_numba_fk_matches_pinocchio(world_of, rng):
             assert np.allclose(p[k], M.translation, atol=1e-12)
 
 
-@pytest.mark.parametrize("scene", SCENES)
+@pytest.mark.parametrize("scene", SCENES + PANDA_SCENES)
 def test_fast_never_says_free_where_exact_says_collision(world_of, scene):
-    """100 000 random configurations per scene: every one the fast checker calls free is free
-    for the exact checker."""
+    """100 000 random configurations per scene, for both robots: every one the fast checker
+    calls free is free for the exact checker."""
     w = world_of(scene)
-    Q = w.robot.sample_uniform(np.random.default_rng(hash(scene) % 2**32), 100_000)
+    Q = w.robot.sample_uniform(np.random.default_rng(sum(map(ord, scene))), 100_000)
     free = w.fast.valid(Q)
     exact_free = w.exact.valid(Q[free])
     missed = int(np.sum(~exact_free))
