@@ -25,6 +25,7 @@ from chekhov.planners.lazy_prm import LazyPRM, LazyPRMConfig
 from chekhov.planners.ompl_planner import OmplPlanner
 from chekhov.planners.query import PlanQuery
 from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt
+from chekhov.planners.status import PlanStatus, Stage, StageReport
 from chekhov.planners.trajopt_planner import SeededTrajOpt, TrajOptPlanner
 from chekhov.roadmap.build import build_roadmap
 from chekhov.roadmap.config import RoadmapConfig
@@ -61,6 +62,7 @@ __all__ = [
     "OmplPlanner",
     "PlanQuery",
     "PlanResult",
+    "PlanStatus",
     "Planner",
     "PlannerBase",
     "PlanningInputError",
@@ -84,6 +86,8 @@ __all__ = [
     "Shape",
     "SphereModel",
     "SphereSettings",
+    "Stage",
+    "StageReport",
     "TrajOptConfig",
     "TrajOptPlanner",
     "TrajOptProblem",

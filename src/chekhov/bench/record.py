@@ -20,7 +20,7 @@ class RunRecord:
     Attributes:
         scene, planner, case_index, case_hash: which run (see :class:`RunTask`).
         solved: the planner returned a path (its own checks passed).
-        status: the planner's status ("solved", "timeout", "no_ik", "seed_timeout", ...;
+        status: the planner's status (a PlanStatus value: "solved", "timeout", "no_ik", ...;
             "crash" when ``plan`` raised).
         time_s: s, the planner's ``PlanResult.time_s`` (IK, seeding, optimisation, its own
             validation).

@@ -18,6 +18,7 @@ from chekhov.bench.registry import PlannerSpec, seed_planner_name
 from chekhov.bench.task import RunTask
 from chekhov.errors import ChekhovError
 from chekhov.planners.base import Planner, PlanResult, path_length
+from chekhov.planners.status import PlanStatus, Stage
 from chekhov.roadmap.graph import Roadmap
 from chekhov.robot.goal import Goal
 from chekhov.world import World
@@ -132,7 +133,7 @@ class BenchWorker:
         if path is not None:
             exact_valid = bool(world.exact.path_valid(path, substeps=self.config.exact_substeps))
         exact_s = time.perf_counter() - t1
-        seed_path, seed_found = _seed_of(name, r.seed, r.info, r.status)
+        seed_path, seed_found = _seed_of(r)
         seed_time = float(r.timing_s["seed"]) if "seed" in r.timing_s else float("nan")
         trajopt_status = r.info.get("trajopt_status")
         fallback = r.info.get("fallback_to_seed")
@@ -169,19 +170,18 @@ def reseed(planner: Any, seed: int) -> None:
             p.rng = np.random.default_rng(seed)
 
 
-def _seed_of(planner: str, seed: Any, info: dict[str, object], status: str
-             ) -> tuple[np.ndarray | None, bool | None]:
-    """The seed path worth storing and whether the seed stage found one."""
-    if planner.startswith("Roadmap+TrajOpt"):
-        rs = info.get("roadmap_seed")
-        if rs is not None:
-            return np.asarray(rs, dtype=float), True
-        return None, False
-    if planner.endswith("+TrajOpt"):
-        if status.startswith("seed_") or seed is None:
+def _seed_of(r: PlanResult) -> tuple[np.ndarray | None, bool | None]:
+    """The seed path worth storing and whether the seed stage found one (None: the planner
+    has no seed stage). A roadmap's or another planner's seed is that stage's own path; a
+    straight-line TrajOpt's, the line it started from."""
+    if r.seed_from is None:
+        return None, None
+    report = r.seed_report
+    if r.seed_from in (Stage.ROADMAP_SEED, Stage.SEED):
+        if report is None or report.path is None or report.status != PlanStatus.SOLVED:
             return None, False
-        return np.asarray(seed, dtype=float), True
-    return None, None
+        return np.asarray(report.path, dtype=float), True
+    return (None, False) if r.seed is None else (np.asarray(r.seed, dtype=float), True)
 
 
 def _scalars(info: dict[str, object]) -> dict[str, object]:

@@ -20,6 +20,7 @@ from chekhov.paths import path_length, resample_path
 from chekhov.planners.certify import certify
 from chekhov.planners.query import PlanQuery, make_query
 from chekhov.planners.result import PlanResult
+from chekhov.planners.status import PlanStatus
 from chekhov.robot.goal import Goal
 
 Array = NDArray[np.float64]
@@ -62,9 +63,9 @@ class PlannerBase(ABC):
         query = make_query(self.world.robot, q_start, goal, time_limit_s)
         query = replace(query, time_limit_s=self._budget_s(query.time_limit_s))
         bad_end = self._end_in_collision(query)
-        if bad_end:
+        if bad_end is not None:
             result = PlanResult(False, None, bad_end, 0.0,
-                                info={"error": f"{bad_end[8:]} configuration in collision"})
+                                info={"error": f"{bad_end.value[8:]} configuration in collision"})
         else:
             result = self._plan(query)
         return certify(self.world, query, result)
@@ -78,16 +79,16 @@ class PlannerBase(ABC):
         planner documents otherwise)."""
         return time_limit_s
 
-    def _end_in_collision(self, query: PlanQuery) -> str:
-        """"invalid_start" / "invalid_goal" when that end configuration collides (the fast
-        checker, confirmed by the exact one), else ""."""
-        ends = [("invalid_start", query.q_start)]
+    def _end_in_collision(self, query: PlanQuery) -> PlanStatus | None:
+        """INVALID_START / INVALID_GOAL when that end configuration collides (the fast
+        checker, confirmed by the exact one), else None."""
+        ends = [(PlanStatus.INVALID_START, query.q_start)]
         if query.goal.q is not None:
-            ends.append(("invalid_goal", query.goal.q))
+            ends.append((PlanStatus.INVALID_GOAL, query.goal.q))
         for status, q in ends:
             if not self.world.fast.is_valid(q) and not self.world.exact.is_valid(q):
                 return status
-        return ""
+        return None
 
 
 def goal_configurations(world: World, goal: Goal, n_ik: int, rng: np.random.Generator,

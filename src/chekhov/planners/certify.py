@@ -17,8 +17,8 @@ is certified when
   certification's own time (``timing_s["certify"]``) counts; it runs only on a found path.
 
 An answer that fails keeps its path in ``info["rejected_path"]`` and gets the status of the
-first failed check ("bad_path", "start_mismatch", "joint_limits", "goal_unmet", "collision",
-"timeout"), with ``info["certificate"]`` saying why.
+first failed check (:class:`PlanStatus` BAD_PATH, START_MISMATCH, JOINT_LIMITS, GOAL_UNMET,
+COLLISION, TIMEOUT), with ``info["certificate"]`` saying why.
 """
 
 from __future__ import annotations
@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 
 from chekhov.collision.path_check import PathCertificate, exact_path_decision
 from chekhov.planners.result import PlanResult
+from chekhov.planners.status import PlanStatus
 from chekhov.transforms import rotation_angle
 
 if TYPE_CHECKING:
@@ -56,14 +57,14 @@ def certify(world: World, query: PlanQuery, result: PlanResult) -> PlanResult:
         return _finish(result, query, None, 0.0)
     t = time.perf_counter()
     why = path_problem(world, query, result.path, result.certificate)
-    status = why[0] if why else ""
     if not why and time.perf_counter() > query.deadline:
-        status, why = "timeout", ("timeout", "the path was found after the time limit")
-    return _finish(result, query, why, time.perf_counter() - t, status)
+        why = (PlanStatus.TIMEOUT, "the path was found after the time limit")
+    return _finish(result, query, why, time.perf_counter() - t)
 
 
 def path_problem(world: World, query: PlanQuery, path: Array | None,
-                 certificate: PathCertificate | None = None) -> tuple[str, str] | None:
+                 certificate: PathCertificate | None = None
+                 ) -> tuple[PlanStatus, str] | None:
     """(status, reason) of the first check ``path`` fails for ``query``; None when it passes.
     A ``certificate`` that covers the path stands for the collision check."""
     robot = world.robot
@@ -71,22 +72,24 @@ def path_problem(world: World, query: PlanQuery, path: Array | None,
     if P is None or P.ndim != 2 or P.shape[1] != robot.dof or len(P) == 0 \
             or not np.all(np.isfinite(P)):
         shape = None if P is None else P.shape
-        return "bad_path", f"expected a finite (T >= 1, {robot.dof}) path, got {shape}"
+        return PlanStatus.BAD_PATH, f"expected a finite (T >= 1, {robot.dof}) path, got {shape}"
     if np.abs(P[0] - query.q_start).max() > START_TOLERANCE_RAD:
-        return "start_mismatch", "the path does not begin at the start configuration"
+        return PlanStatus.START_MISMATCH, "the path does not begin at the start configuration"
     inside = robot.within_limits(P, LIMIT_TOLERANCE_RAD)
     if not inside.all():
-        return "joint_limits", f"waypoint {int(np.argmin(inside))} is outside the joint limits"
+        return (PlanStatus.JOINT_LIMITS,
+                f"waypoint {int(np.argmin(inside))} is outside the joint limits")
     unmet = goal_error(world, query, P[-1])
     if unmet:
-        return "goal_unmet", unmet
+        return PlanStatus.GOAL_UNMET, unmet
     if certificate is not None and certificate.covers(P, SUBSTEPS, world.fast):
         return None
     valid, _ = exact_path_decision(world.fast, world.exact, P, SUBSTEPS, query.deadline)
     if valid is None:
-        return "timeout", "the time limit passed during the collision check"
+        return PlanStatus.TIMEOUT, "the time limit passed during the collision check"
     if not valid:
-        return "collision", f"in collision at {SUBSTEPS} substeps per segment (exact checker)"
+        return (PlanStatus.COLLISION,
+                f"in collision at {SUBSTEPS} substeps per segment (exact checker)")
     return None
 
 
@@ -110,8 +113,8 @@ def goal_error(world: World, query: PlanQuery, q: Array) -> str:
     return ""
 
 
-def _finish(result: PlanResult, query: PlanQuery, why: tuple[str, str] | None,
-            certify_s: float, status: str = "") -> PlanResult:
+def _finish(result: PlanResult, query: PlanQuery, why: tuple[PlanStatus, str] | None,
+            certify_s: float) -> PlanResult:
     """The result with ``time_s`` from the query's start, the certification's time and, when
     it failed, its reason."""
     timing = {**result.timing_s, "certify": certify_s}
@@ -124,5 +127,5 @@ def _finish(result: PlanResult, query: PlanQuery, why: tuple[str, str] | None,
     if why is None:
         return replace(result, time_s=now - query.t0, timing_s=timing, info=info)
     info["rejected_path"] = result.path
-    return replace(result, success=False, path=None, status=status, time_s=now - query.t0,
+    return replace(result, success=False, path=None, status=why[0], time_s=now - query.t0,
                    timing_s=timing, info=info)

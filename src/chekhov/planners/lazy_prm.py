@@ -41,6 +41,7 @@ from scipy.spatial import cKDTree
 
 from chekhov.planners.base import PlannerBase, PlanResult, solve_goal_ik
 from chekhov.planners.query import PlanQuery
+from chekhov.planners.status import PlanStatus
 from chekhov.world import World
 
 Array = NDArray[np.float64]
@@ -113,19 +114,19 @@ class LazyPRM(PlannerBase):
         info: dict[str, object] = {"planner": self.name, **asdict(self.config),
                                    "max_edge": self.max_edge}
 
-        def done(status: str, path: Array | None = None) -> PlanResult:
+        def done(status: PlanStatus, path: Array | None = None) -> PlanResult:
             return PlanResult(path is not None, path, status, time.perf_counter() - t0,
                               timing, info=info)
 
         goals = solve_goal_ik(self.world, query, cfg.n_ik, self.rng, timing, info)
         if goals is None:
-            return done("timeout" if query.expired() else "no_ik")
+            return done(PlanStatus.TIMEOUT if query.expired() else PlanStatus.NO_IK)
         if query.expired():
-            return done("timeout")
+            return done(PlanStatus.TIMEOUT)
         if not (robot.within_limits(q_start)[0] and self.node_valid(q_start[None])[0]):
-            return done("invalid_start")
+            return done(PlanStatus.INVALID_START)
         if not self._can_build(cfg.n_init, deadline):
-            return done("timeout")
+            return done(PlanStatus.TIMEOUT)
         t = time.perf_counter()
         X = np.vstack([q_start, goals, robot.sample_uniform(self.rng, cfg.n_init)])
         node_state = np.zeros(len(X), dtype=np.int8)
@@ -141,9 +142,9 @@ class LazyPRM(PlannerBase):
                 node_state, edge_state, deadline, cfg.coarse_factor, stats, timing)
             info.update(stats, nodes=len(X), edges=len(edges))
             if path is not None:
-                return done("solved", X[path])
+                return done(PlanStatus.SOLVED, X[path])
             if not self._can_build(cfg.n_enhance, deadline):
-                return done("timeout")
+                return done(PlanStatus.TIMEOUT)
             t = time.perf_counter()
             new = self._enhance(X, edges, edge_state)
             first = len(X)

@@ -44,6 +44,7 @@ from numpy.typing import NDArray
 from chekhov.errors import ChekhovError
 from chekhov.planners.base import PlannerBase, PlanResult, solve_goal_ik
 from chekhov.planners.query import PlanQuery
+from chekhov.planners.status import PlanStatus
 from chekhov.world import World
 
 Array = NDArray[np.float64]
@@ -173,18 +174,18 @@ class OmplPlanner(PlannerBase):
         info: dict[str, object] = {"planner": self.kind}
         c0 = dict(self.counts)
 
-        def done(status: str, path: Array | None = None) -> PlanResult:
+        def done(status: PlanStatus, path: Array | None = None) -> PlanResult:
             info.update({k: self.counts[k] - c0[k] for k in self.counts})
             return PlanResult(path is not None, path, status, time.perf_counter() - t0,
                               timing, info=info)
 
         goals = solve_goal_ik(self.world, query, self.n_ik, self.rng, timing, info)
         if goals is None:
-            return done("timeout" if query.expired() else "no_ik")
+            return done(PlanStatus.TIMEOUT if query.expired() else PlanStatus.NO_IK)
         if query.expired():
-            return done("timeout")
+            return done(PlanStatus.TIMEOUT)
         if not (robot.within_limits(q_start)[0] and self.world.fast.is_valid(q_start)):
-            return done("invalid_start")
+            return done(PlanStatus.INVALID_START)
         t = time.perf_counter()
         pdef = ob.ProblemDefinition(self.si)
         pdef.addStartState(self._state(q_start))
@@ -213,7 +214,7 @@ class OmplPlanner(PlannerBase):
         exact = (status is not None
                  and status.getStatus() == ob.PlannerStatus.PlannerStatusType.EXACT_SOLUTION)
         if not exact:
-            return done("timeout")
+            return done(PlanStatus.TIMEOUT)
         path = pdef.getSolutionPath()
         info["raw_waypoints"] = int(path.getStateCount())
         if self.simplify:
@@ -223,4 +224,4 @@ class OmplPlanner(PlannerBase):
             if budget > 0:
                 simplifier.simplify(path, budget)
             timing["simplify"] = time.perf_counter() - t
-        return done("solved", self._path_array(path))
+        return done(PlanStatus.SOLVED, self._path_array(path))

@@ -9,6 +9,7 @@ from numpy.typing import NDArray
 
 from chekhov.collision.path_check import PathCertificate
 from chekhov.paths import path_length
+from chekhov.planners.status import PlanStatus, Stage, StageReport
 
 Array = NDArray[np.float64]
 
@@ -18,10 +19,10 @@ class PlanResult:
     """What a planner returns.
 
     Attributes:
-        success: a path was found that the planner's own checks accept.
+        success: a path was found and certified (after ``PlannerBase.plan``).
         path: waypoints (T, K), rad, first row the start; None on failure.
-        status: short machine-readable reason, e.g. "solved", "timeout", "no_ik",
-            "no_connection", "collision".
+        status: why the call ended (:class:`PlanStatus`; a string given is converted, an
+            unknown one is a ValueError).
         time_s: wall time of ``plan`` (s).
         timing_s: breakdown of ``time_s`` by phase (s), e.g. {"ik": .., "seed": .., "optimise": ..}.
         seed: the seed path (T', K) an optimising planner started from, when there was one.
@@ -29,16 +30,34 @@ class PlanResult:
         certificate: the exact path check's proof for ``path``, when the planner ran it
             (:class:`~chekhov.collision.path_check.PathCertificate`); the certification
             (:func:`chekhov.planners.certify.certify`) runs the check itself otherwise.
+        stages: what each stage did, in order (:class:`StageReport`).
+        seed_from: the stage whose path the final optimisation started from (its report in
+            ``stages`` says whether it found one); None for planners without a seed.
     """
 
     success: bool
     path: Array | None
-    status: str
+    status: PlanStatus
     time_s: float
     timing_s: dict[str, float] = field(default_factory=dict)
     seed: Array | None = None
     info: dict[str, object] = field(default_factory=dict)
     certificate: PathCertificate | None = None
+    stages: tuple[StageReport, ...] = ()
+    seed_from: Stage | None = None
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.status, PlanStatus):
+            object.__setattr__(self, "status", PlanStatus.of(self.status))
+
+    def stage(self, stage: Stage) -> StageReport | None:
+        """The last report of ``stage``, or None when it did not run."""
+        return next((r for r in reversed(self.stages) if r.stage == stage), None)
+
+    @property
+    def seed_report(self) -> StageReport | None:
+        """The report of the stage the final optimisation's seed came from (``seed_from``)."""
+        return self.stage(self.seed_from) if self.seed_from is not None else None
 
     @property
     def path_length(self) -> float:

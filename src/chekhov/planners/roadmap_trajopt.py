@@ -14,7 +14,8 @@ from chekhov.errors import ChekhovError
 from chekhov.planners.base import PlannerBase, PlanResult, path_length, resample_path
 from chekhov.planners.query import PlanQuery
 from chekhov.planners.shortcut import shortcut_path
-from chekhov.planners.trajopt_planner import TrajOptPlanner
+from chekhov.planners.status import PlanStatus, Stage, StageReport
+from chekhov.planners.trajopt_planner import TrajOptPlanner, optimise_report
 from chekhov.roadmap.graph import Roadmap
 from chekhov.roadmap.seeder import RoadmapSeeder, SeederConfig, SeedResult
 from chekhov.robot.goal import Goal
@@ -89,100 +90,113 @@ class RoadmapTrajOpt(PlannerBase):
         self._distances = TrajectoryDistances(world.fast)
 
     def _plan(self, query: PlanQuery) -> PlanResult:
-        timing: dict[str, float] = {}
+        run = _Run(query)
         if self.straight_line_first:
-            first = self._straight_line_try(query, timing)
+            first = self._straight_line_try(run)
             if first is not None and first.success:
                 return first
         if query.expired():
-            return self._result(query, False, None, "timeout", timing)
+            return self._result(run, False, None, PlanStatus.TIMEOUT)
         t_seed = time.perf_counter()
         found = self.seeder.seeds(query.q_start, query.goal, self.goal_routes,
                                   deadline=query.deadline)
         s = found[0]
-        timing["seed"] = s.timing_s.get("total", time.perf_counter() - t_seed)
+        run.timing["seed"] = s.timing_s.get("total", time.perf_counter() - t_seed)
+        run.stages.append(StageReport(
+            Stage.ROADMAP_SEED, PlanStatus.of(s.status), run.timing["seed"], s.path,
+            {"routes": sum(f.path is not None for f in found), **_scalars(s.info)}))
         if not s.success or s.path is None:
-            return self._no_seed(query, s, timing)
+            return self._no_seed(run, s)
         t1 = time.perf_counter()
         # every route of a successful query has a path; the shortest after shortcutting wins
         s, short = min(((f, self._shortcut(f.path, query)) for f in found
                         if f.path is not None), key=lambda route: path_length(route[1]))
-        timing["shortcut"] = time.perf_counter() - t1
+        run.timing["shortcut"] = time.perf_counter() - t1
+        run.stages.append(StageReport(Stage.SHORTCUT, PlanStatus.SOLVED,
+                                      run.timing["shortcut"], short))
         seed = resample_path(short, self.config.max_step_rad)
         if len(seed) < 2:
             seed = np.vstack([seed, seed])
         if query.expired():
-            return self._result(query, False, None, "timeout", timing, seed,
-                                {"seed_info": s.info})
-        return self._optimise_seed(query, s, seed, len(found), timing)
+            return self._result(run, False, None, PlanStatus.TIMEOUT, seed,
+                                {"seed_info": s.info}, seed_from=Stage.ROADMAP_SEED)
+        return self._optimise_seed(run, s, seed, len(found))
 
     def _shortcut(self, path: Array, query: PlanQuery) -> Array:
         return shortcut_path(self.world.fast, path, deadline=query.deadline) \
             if self.shortcut else path
 
-    def _result(self, query: PlanQuery, success: bool, path: Array | None, status: str,
-                timing: dict[str, float], seed: Array | None = None,
-                info: dict[str, object] | None = None,
-                certificate: PathCertificate | None = None) -> PlanResult:
-        return PlanResult(success, path, status, time.perf_counter() - query.t0, timing,
-                          seed=seed, info=info if info is not None else {},
-                          certificate=certificate)
+    def _result(self, run: _Run, success: bool, path: Array | None, status: PlanStatus,
+                seed: Array | None = None, info: dict[str, object] | None = None,
+                certificate: PathCertificate | None = None,
+                seed_from: Stage | None = None) -> PlanResult:
+        return PlanResult(success, path, status, time.perf_counter() - run.query.t0,
+                          run.timing, seed=seed, info=info if info is not None else {},
+                          certificate=certificate, stages=tuple(run.stages),
+                          seed_from=seed_from)
 
-    def _straight_line_try(self, query: PlanQuery, timing: dict[str, float]
-                           ) -> PlanResult | None:
+    def _straight_line_try(self, run: _Run) -> PlanResult | None:
         """TrajOpt from a straight line to the collision-free IK solution nearest the start,
         for at most ``straight_line_time_s``; None when there is no such IK solution."""
-        t0 = query.t0
+        query, t0 = run.query, run.query.t0
         try:
             q_goal = self._line_planner.goal_configuration(
                 query.q_start, query.goal,
                 deadline=min(query.deadline, t0 + self.straight_line_time_s))
-        except ChekhovError:
+        except ChekhovError as e:
             q_goal = None
-        timing["straight_line"] = time.perf_counter() - t0
+            run.stages.append(StageReport(Stage.IK, PlanStatus.NO_IK, time.perf_counter() - t0,
+                                          detail={"error": str(e)}))
+        run.timing["straight_line"] = time.perf_counter() - t0
         budget = min(self.straight_line_time_s, query.remaining())
         result = None
         if q_goal is not None and budget > 0:
-            result = self._straight_line(query, q_goal, "", timing, {}, budget)
-        timing["straight_line"] = time.perf_counter() - t0
+            result = self._straight_line(run, q_goal, None, {}, budget)
+        run.timing["straight_line"] = time.perf_counter() - t0
         return result
 
-    def _no_seed(self, query: PlanQuery, s: SeedResult, timing: dict[str, float]
-                 ) -> PlanResult:
+    def _no_seed(self, run: _Run, s: SeedResult) -> PlanResult:
         """The roadmap had no seed: a bounded straight-line TrajOpt when it could not connect
         or dynamic obstacles cut its routes (``straight_line_fallback``), else the failure."""
-        if self.straight_line_fallback and s.status in ("no_connection", "no_path"):
+        query, status = run.query, PlanStatus.of(s.status)
+        if self.straight_line_fallback and status in (PlanStatus.NO_CONNECTION,
+                                                      PlanStatus.NO_PATH):
             q_goal = self._goal_configuration(query)
             budget = min(self.fallback_time_s, query.remaining())
             if q_goal is not None and budget > 0:
-                return self._straight_line(query, q_goal, s.status, timing, s.info, budget)
-        return self._result(query, False, None, s.status, timing, info={"seed_info": s.info})
+                return self._straight_line(run, q_goal, status, s.info, budget)
+        return self._result(run, False, None, status, info={"seed_info": s.info},
+                            seed_from=Stage.ROADMAP_SEED)
 
-    def _optimise_seed(self, query: PlanQuery, s: SeedResult, seed: Array, n_routes: int,
-                       timing: dict[str, float]) -> PlanResult:
+    def _optimise_seed(self, run: _Run, s: SeedResult, seed: Array, n_routes: int
+                       ) -> PlanResult:
         """TrajOpt from the roadmap seed (and once more towards the seed's end configuration
         when a pose goal was lost to the collision terms); the seed itself when the optimised
         trajectory fails the exact check."""
-        goal = query.goal
+        query, goal = run.query, run.query.goal
+        t = time.perf_counter()
         cfg = self.config.within(query.remaining())
         try:
             problem = build_trajopt(self.world, query.q_start, goal, seed, cfg, self._distances)
         except ChekhovError as e:
-            return self._result(query, False, None, "bad_problem", timing, seed,
-                                {"error": str(e)})
+            return self._result(run, False, None, PlanStatus.BAD_PROBLEM, seed,
+                                {"error": str(e)}, seed_from=Stage.ROADMAP_SEED)
         r = solve_trajopt(problem, query.deadline)
-        timing["optimise"] = r.optimise_s
-        timing["validate"] = r.timing_s["validate"]
+        run.timing["optimise"] = r.optimise_s
+        run.timing["validate"] = r.timing_s["validate"]
+        run.stages.append(optimise_report(r, time.perf_counter() - t))
         retry = None
         if (r.status == "infeasible" and goal.is_pose and r.unmet() - {"collision_m"}
                 and not query.expired()):
             # the goal pose lost to the collision terms (its IK solution is near an obstacle):
             # again, with the seed's own end configuration, an IK solution of the pose, as goal
+            t = time.perf_counter()
             retry = solve_trajopt(build_trajopt(
                 self.world, query.q_start, Goal.configuration(seed[-1]), seed,
                 self.config.within(query.remaining()), self._distances), query.deadline)
-            timing["optimise"] += retry.optimise_s
-            timing["validate"] += retry.timing_s["validate"]
+            run.timing["optimise"] += retry.optimise_s
+            run.timing["validate"] += retry.timing_s["validate"]
+            run.stages.append(optimise_report(retry, time.perf_counter() - t, Stage.RETRY))
             if retry.success:
                 r = retry
         info: dict[str, object] = {"seed_kind": "roadmap", "roadmap_seed": s.path,
@@ -194,11 +208,14 @@ class RoadmapTrajOpt(PlannerBase):
                                    "trajopt_timing_s": r.timing_s,
                                    "joint_goal_retry": None if retry is None else retry.status}
         if r.success:
-            return self._result(query, True, r.trajectory, "solved", timing, seed, info,
-                                r.certificate)
+            return self._result(run, True, r.trajectory, PlanStatus.SOLVED, seed, info,
+                                r.certificate, seed_from=Stage.ROADMAP_SEED)
         # the seed (fast-free, ends at an IK solution of the goal): the certification's exact
         # check decides whether it is an answer
-        return self._result(query, True, seed, "solved", timing, seed, info)
+        run.stages.append(StageReport(Stage.FALLBACK, PlanStatus.SOLVED, 0.0, seed,
+                                      {"to": "seed"}))
+        return self._result(run, True, seed, PlanStatus.SOLVED, seed, info,
+                            seed_from=Stage.ROADMAP_SEED)
 
     def _goal_configuration(self, query: PlanQuery) -> Array | None:
         """The goal configuration, or the pose goal's IK solution nearest the start."""
@@ -211,31 +228,50 @@ class RoadmapTrajOpt(PlannerBase):
             return None
         return np.asarray(Q[int(np.argmin(np.linalg.norm(Q - query.q_start, axis=1)))])
 
-    def _straight_line(self, query: PlanQuery, q_goal: Array, roadmap_status: str,
-                       timing: dict[str, float], seed_info: dict[str, object],
-                       budget_s: float) -> PlanResult:
+    def _straight_line(self, run: _Run, q_goal: Array, roadmap_status: PlanStatus | None,
+                       seed_info: dict[str, object], budget_s: float) -> PlanResult:
         """TrajOpt from a straight line to q_goal for at most ``budget_s`` s of optimisation;
-        never a colliding result (TrajOpt validates it). ``roadmap_status`` "" marks the
-        first attempt, before the roadmap."""
+        never a colliding result (TrajOpt validates it). ``roadmap_status`` None marks the
+        first attempt, before the roadmap; otherwise this is the fallback after it."""
+        query = run.query
+        stage = Stage.STRAIGHT_LINE if roadmap_status is None else Stage.FALLBACK
+        fail = roadmap_status if roadmap_status is not None else PlanStatus.INFEASIBLE
         seed = straight_line_seed(query.q_start, q_goal, self.config.n_waypoints)
         info: dict[str, object] = {
             "fallback": "straight_line" if roadmap_status else None,
-            "seed_kind": "straight_line", "roadmap_status": roadmap_status,
+            "seed_kind": "straight_line", "roadmap_status": roadmap_status or "",
             "seed_info": seed_info, "fallback_to_seed": False}
+        t = time.perf_counter()
         try:
             cfg = self.config.within(budget_s)
             problem = build_trajopt(self.world, query.q_start, query.goal, seed, cfg,
                                     self._distances)
         except ChekhovError as e:
-            return self._result(query, False, None, roadmap_status, timing,
-                                info={**info, "error": str(e)})
+            run.stages.append(StageReport(stage, PlanStatus.BAD_PROBLEM,
+                                          time.perf_counter() - t, detail={"error": str(e)}))
+            return self._result(run, False, None, fail, info={**info, "error": str(e)})
         r = solve_trajopt(problem, query.deadline)
-        timing["optimise"] = r.optimise_s
-        timing["validate"] = r.timing_s["validate"]
+        run.timing["optimise"] = r.optimise_s
+        run.timing["validate"] = r.timing_s["validate"]
+        run.stages.append(optimise_report(r, time.perf_counter() - t, stage))
         info.update({"trajopt_status": r.status, "iterations": r.iterations,
                      "trajopt_cpu_s": r.info["cpu_s"], "trajectory": r.trajectory,
                      "roadmap_seed": problem.seed, "optimised_valid": r.valid,
                      "trajopt_timing_s": r.timing_s})
-        return self._result(query, r.success, r.trajectory if r.success else None,
-                            "solved" if r.success else roadmap_status, timing, problem.seed,
-                            info, r.certificate)
+        return self._result(run, r.success, r.trajectory if r.success else None,
+                            PlanStatus.SOLVED if r.success else fail, problem.seed, info,
+                            r.certificate, seed_from=stage)
+
+
+class _Run:
+    """One call's query, its timing breakdown (s) and its stage reports so far."""
+
+    def __init__(self, query: PlanQuery) -> None:
+        self.query = query
+        self.timing: dict[str, float] = {}
+        self.stages: list[StageReport] = []
+
+
+def _scalars(info: dict[str, object]) -> dict[str, object]:
+    """The scalar entries of a seeder's info (for a stage report's detail)."""
+    return {k: v for k, v in info.items() if isinstance(v, bool | int | float | str)}

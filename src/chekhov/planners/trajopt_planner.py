@@ -13,10 +13,12 @@ from chekhov.collision.distance_terms import TrajectoryDistances
 from chekhov.errors import ChekhovError
 from chekhov.planners.base import Planner, PlannerBase, PlanResult
 from chekhov.planners.query import PlanQuery
+from chekhov.planners.status import PlanStatus, Stage, StageReport
 from chekhov.robot.chain_kinematics import ChainKinematics
 from chekhov.robot.goal import Goal
 from chekhov.trajopt.config import TrajOptConfig
 from chekhov.trajopt.problem import build_trajopt, goal_configuration, straight_line_seed
+from chekhov.trajopt.result import TrajOptResult
 from chekhov.trajopt.solver import solve_trajopt
 from chekhov.world import World
 
@@ -68,12 +70,16 @@ class TrajOptPlanner(PlannerBase):
         try:
             q_goal = self.goal_configuration(q_start, goal, deadline=query.deadline)
         except ChekhovError as e:
-            return PlanResult(False, None, "no_ik", time.perf_counter() - t0,
-                              info={"error": str(e)})
+            t_ik = time.perf_counter() - t0
+            return PlanResult(False, None, PlanStatus.NO_IK, t_ik, info={"error": str(e)},
+                              stages=(StageReport(Stage.IK, PlanStatus.NO_IK, t_ik,
+                                                  detail={"error": str(e)}),))
         t_ik = time.perf_counter() - t0
         seed = straight_line_seed(q_start, q_goal, self.config.n_waypoints)
+        ik = StageReport(Stage.IK, PlanStatus.SOLVED, t_ik, q_goal[None])
+        line = StageReport(Stage.STRAIGHT_LINE, PlanStatus.SOLVED, 0.0, seed)
         return _optimise(self.world, self.config, self._distances, q_start, goal, seed,
-                         query.remaining(), t0, {"ik": t_ik})
+                         query.remaining(), t0, {"ik": t_ik}, (ik, line), Stage.STRAIGHT_LINE)
 
 
 class SeededTrajOpt(PlannerBase):
@@ -101,35 +107,58 @@ class SeededTrajOpt(PlannerBase):
         seeded = self.seed_planner.plan(q_start, goal,
                                         query.time_limit_s - self.config.time_limit_s)
         self.last_seed_result = seeded
+        report = StageReport(Stage.SEED, seeded.status, seeded.time_s, seeded.path,
+                             {"planner": self.seed_planner.name})
         if not seeded.success or seeded.path is None:
-            return PlanResult(False, None, f"seed_{seeded.status}", time.perf_counter() - t0,
-                              timing_s={"seed": seeded.time_s}, info=dict(seeded.info))
+            return PlanResult(False, None, seeded.status, time.perf_counter() - t0,
+                              timing_s={"seed": seeded.time_s}, info=dict(seeded.info),
+                              stages=(report,), seed_from=Stage.SEED)
         # TrajOpt gets its own budget (config.time_limit_s), as in the paper, where the two
         # stages' times add up: optimal seed planners use all of time_limit_s
         return _optimise(self.world, self.config, self._distances, q_start, goal, seeded.path,
                          min(self.config.time_limit_s, query.remaining()), t0,
-                         {"seed": seeded.time_s})
+                         {"seed": seeded.time_s}, (report,), Stage.SEED)
 
 
 def _optimise(world: World, config: TrajOptConfig, distances: TrajectoryDistances,
               q_start: Array, goal: Goal, seed: Array, time_limit_s: float, t0: float,
-              timing: dict[str, float]) -> PlanResult:
+              timing: dict[str, float], stages: tuple[StageReport, ...], seed_from: Stage
+              ) -> PlanResult:
     """Run TrajOpt on a seed for at most ``time_limit_s`` (s) and wrap the outcome as a
-    PlanResult."""
-    deadline = time.perf_counter() + time_limit_s
+    PlanResult (after the reports of the ``stages`` before it)."""
+    t = time.perf_counter()
+    deadline = t + time_limit_s
     cfg = config.within(time_limit_s)
     try:
         problem = build_trajopt(world, q_start, goal, seed, cfg, distances)
     except ChekhovError as e:
-        return PlanResult(False, None, "bad_problem", time.perf_counter() - t0,
-                          info={"error": str(e)})
+        bad = StageReport(Stage.OPTIMISE, PlanStatus.BAD_PROBLEM, time.perf_counter() - t,
+                          detail={"error": str(e)})
+        return PlanResult(False, None, PlanStatus.BAD_PROBLEM, time.perf_counter() - t0,
+                          info={"error": str(e)}, stages=(*stages, bad), seed_from=seed_from)
     r = solve_trajopt(problem, deadline)
     timing = {**timing, "optimise": r.optimise_s, "validate": r.timing_s["validate"]}
+    status = trajopt_status(r.status, r.success)
     return PlanResult(
         success=r.success, path=r.trajectory if r.success else None,
-        status="solved" if r.success else r.status, time_s=time.perf_counter() - t0,
+        status=status, time_s=time.perf_counter() - t0,
         timing_s=timing, seed=problem.seed, certificate=r.certificate,
         info={"trajopt_status": r.status, "iterations": r.iterations,
               "trajopt_cpu_s": r.info["cpu_s"],
               "violations": r.violations, "trajectory": r.trajectory,
-              "trajopt_timing_s": r.timing_s})
+              "trajopt_timing_s": r.timing_s},
+        stages=(*stages, optimise_report(r, time.perf_counter() - t)), seed_from=seed_from)
+
+
+def trajopt_status(status: str, success: bool) -> PlanStatus:
+    """The plan status of a TrajOpt run: SOLVED, or its failure (INFEASIBLE, COLLISION,
+    TIMEOUT)."""
+    return PlanStatus.SOLVED if success else PlanStatus.of(status)
+
+
+def optimise_report(r: TrajOptResult, time_s: float, stage: Stage = Stage.OPTIMISE
+                    ) -> StageReport:
+    """The report of a TrajOpt run (``time_s``: s, with building its problem)."""
+    return StageReport(stage, trajopt_status(r.status, r.success), time_s, r.trajectory,
+                       {"trajopt_status": r.status, "iterations": r.iterations,
+                        "valid": r.valid})
