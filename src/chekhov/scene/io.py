@@ -10,53 +10,16 @@ from __future__ import annotations
 
 from importlib import resources
 from pathlib import Path
-from typing import Any
 
-import numpy as np
 import yaml
 
 from chekhov.atomic import write_atomic
 from chekhov.errors import SceneError
-from chekhov.scene.model import Scene
+from chekhov.scene.model import Scene, scene_to_dict
 from chekhov.scene.safe_yaml import read_yaml
-from chekhov.scene.validate import FORMAT_VERSION, scene_from_dict
-from chekhov.transforms import matrix_to_quat
+from chekhov.scene.validate import scene_from_dict
 
 __all__ = ["builtin_scenes", "load_scene", "save_scene", "scene_from_dict", "scene_to_dict"]
-
-
-def _pose_dict(T: np.ndarray) -> dict[str, list[float]]:
-    q = matrix_to_quat(T[:3, :3])
-    return {"xyz": [round(float(x), 9) for x in T[:3, 3]], "quat": [round(float(x), 12) for x in q]}
-
-
-def scene_to_dict(scene: Scene) -> dict[str, Any]:
-    """A plain mapping that :func:`scene_from_dict` turns back into an equal scene."""
-    objects = []
-    for o in scene.objects:
-        d: dict[str, Any] = {"name": o.name, "class": o.cls,
-                             "motion": "dynamic" if o.dynamic else "static",
-                             "shape": o.shape.kind, "size": list(o.shape.size),
-                             "pose": {"xyz": list(o.pose.xyz), "quat": list(o.pose.quat_wxyz)}}
-        if o.grasps:
-            d["grasps"] = [{"name": g.name, "grasp": _pose_dict(g.T_obj_grasp),
-                            "pregrasp": _pose_dict(g.T_obj_pregrasp)} for g in o.grasps]
-        if o.articulation is not None:
-            a = o.articulation
-            d["articulation"] = {"type": a.kind, "axis": list(a.axis), "origin": list(a.origin),
-                                 "states": dict(a.states), "state": a.state}
-        objects.append(d)
-    out: dict[str, Any] = {"format": FORMAT_VERSION, "name": scene.name,
-                           "description": scene.description, "robot": scene.robot}
-    if scene.base_pose is not None:
-        out["base_pose"] = {"xyz": list(scene.base_pose.xyz),
-                            "quat": list(scene.base_pose.quat_wxyz)}
-    if scene.locked_joints:
-        out["locked_joints"] = dict(scene.locked_joints)
-    out["objects"] = objects
-    out["regions"] = [{"name": r.name, "center": list(r.center), "size": list(r.size),
-                       "weight": r.weight} for r in scene.regions]
-    return out
 
 
 def load_scene(name_or_path: str | Path) -> Scene:

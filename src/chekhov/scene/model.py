@@ -5,12 +5,12 @@ from __future__ import annotations
 import hashlib
 import json
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
-from chekhov.transforms import make_transform, quat_to_matrix, rotation_about
+from chekhov.transforms import make_transform, matrix_to_quat, quat_to_matrix, rotation_about
 
 Array = NDArray[np.float64]
 ShapeKind = Literal["box", "cylinder", "sphere"]
@@ -185,9 +185,45 @@ class Scene:
 
     def content_hash(self) -> str:
         """SHA-256 of the scene's content (what a roadmap or case file is bound to)."""
-        from chekhov.scene.io import scene_to_dict
-
         d = scene_to_dict(self)
         d.pop("description", None)
         blob = json.dumps(d, sort_keys=True, separators=(",", ":")).encode()
         return hashlib.sha256(blob).hexdigest()
+
+
+FORMAT_VERSION = 1
+"""The scene file format this chekhov reads and writes."""
+
+
+def _pose_dict(T: np.ndarray) -> dict[str, list[float]]:
+    q = matrix_to_quat(T[:3, :3])
+    return {"xyz": [round(float(x), 9) for x in T[:3, 3]], "quat": [round(float(x), 12) for x in q]}
+
+
+def scene_to_dict(scene: Scene) -> dict[str, Any]:
+    """A plain mapping that :func:`scene_from_dict` turns back into an equal scene."""
+    objects = []
+    for o in scene.objects:
+        d: dict[str, Any] = {"name": o.name, "class": o.cls,
+                             "motion": "dynamic" if o.dynamic else "static",
+                             "shape": o.shape.kind, "size": list(o.shape.size),
+                             "pose": {"xyz": list(o.pose.xyz), "quat": list(o.pose.quat_wxyz)}}
+        if o.grasps:
+            d["grasps"] = [{"name": g.name, "grasp": _pose_dict(g.T_obj_grasp),
+                            "pregrasp": _pose_dict(g.T_obj_pregrasp)} for g in o.grasps]
+        if o.articulation is not None:
+            a = o.articulation
+            d["articulation"] = {"type": a.kind, "axis": list(a.axis), "origin": list(a.origin),
+                                 "states": dict(a.states), "state": a.state}
+        objects.append(d)
+    out: dict[str, Any] = {"format": FORMAT_VERSION, "name": scene.name,
+                           "description": scene.description, "robot": scene.robot}
+    if scene.base_pose is not None:
+        out["base_pose"] = {"xyz": list(scene.base_pose.xyz),
+                            "quat": list(scene.base_pose.quat_wxyz)}
+    if scene.locked_joints:
+        out["locked_joints"] = dict(scene.locked_joints)
+    out["objects"] = objects
+    out["regions"] = [{"name": r.name, "center": list(r.center), "size": list(r.size),
+                       "weight": r.weight} for r in scene.regions]
+    return out

@@ -26,6 +26,7 @@ from chekhov.errors import SceneError
 from chekhov.robot.description import builtin_robots
 from chekhov.scene.grasps import APPROACHES, generate_grasps, grasp_from_frame
 from chekhov.scene.model import (
+    FORMAT_VERSION,
     OBJECT_CLASSES,
     SHAPE_KINDS,
     Articulation,
@@ -45,7 +46,6 @@ MAX_LOCKED = 200
 SCENE_FIELDS = {"name", "description", "robot", "base_pose", "locked_joints", "objects", "regions",
                 "format"}
 REGION_FIELDS = {"name", "center", "size", "weight"}
-FORMAT_VERSION = 1
 MAX_LENGTH = 1000.0  # m (rad): largest coordinate, size, standoff, depth, angle, state value
 MAX_WEIGHT = 1e6
 MAX_OBJECTS = 1000
