@@ -176,8 +176,9 @@ BILLION_LAUGHS = "name: t\nobjects:\n- {name: b, shape: box, size: [1, 1, 1], po
     ("name: t\nobjects:\n- {name: b, name: c}\n", r"bad\.yaml: line 3.*duplicate key 'name'"),
     (b"name: t\xff\xfe\nobjects: []\n", r"bad\.yaml: line 1.*not UTF-8"),
     (BILLION_LAUGHS, r"bad\.yaml: line \d+.*aliases"),
-    ("[" * 20000 + "]" * 20000, r"bad\.yaml: line 1.*nested deeper than"),
-    ("{a: " * 20000 + "1" + "}" * 20000, r"bad\.yaml: line 1.*nested deeper than"),
+    # ours, or PyYAML's own (>= 6.0.3) limit: either way a located error
+    ("[" * 20000 + "]" * 20000, r"bad\.yaml: line 1.*(nested deeper than|nesting depth)"),
+    ("{a: " * 20000 + "1" + "}" * 20000, r"bad\.yaml: line 1.*(nested deeper than|nesting depth)"),
     ("a: &x [*x]\n", r"bad\.yaml: line 1.*recursive alias"),
     ("a: 1\n---\nb: 2\n", r"bad\.yaml: line 2.*not valid YAML"),
     ("a: 2001-13-45\n", r"bad\.yaml: not valid YAML"),
