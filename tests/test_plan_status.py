@@ -31,7 +31,7 @@ def roadmap(world):
 def test_a_status_is_an_enum_equal_to_its_string_and_unknown_ones_are_refused():
     r = PlanResult(False, None, "timeout", 0.0)
     assert r.status is PlanStatus.TIMEOUT and r.status == "timeout" and f"{r.status}" == "timeout"
-    with pytest.raises(ValueError, match="unknown plan status 'seed_timeout'.*solved"):
+    with pytest.raises(ValueError, match=r"unknown plan status 'seed_timeout'.*solved"):
         PlanResult(False, None, "seed_timeout", 0.0)
 
 
