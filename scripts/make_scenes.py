@@ -133,7 +133,8 @@ def panda_table_shelf() -> dict[str, Any]:
     top = [{"generate": {"approaches": ["top", "front"], "standoff": 0.10, "depth": 0.03}}]
     front = [{"generate": {"approaches": ["front"], "standoff": 0.10, "depth": 0.03}}]
     sx, sy, sz, w, t = 0.62, 0.30, 0.32, 0.50, 0.02   # shelf centre x, y, board height, width
-    objs = bench() + [
+    objs = [
+        *bench(),
         box("shelf_board", "shelf", [0.30, w, t], [sx, sy, sz + t / 2]),
         box("shelf_side_0", "shelf", [0.30, t, sz], [sx, sy - w / 2 + t / 2, sz / 2]),
         box("shelf_side_1", "shelf", [0.30, t, sz], [sx, sy + w / 2 - t / 2, sz / 2]),
@@ -164,7 +165,8 @@ def panda_cage() -> dict[str, Any]:
     front = [{"generate": {"approaches": ["front"], "standoff": 0.10, "depth": 0.03}}]
     x0, x1, w, h, t = 0.42, 0.78, 0.46, 0.42, 0.02   # open face at x0, back wall at x1
     cx, cy = (x0 + x1) / 2, 0.05
-    objs = bench() + [
+    objs = [
+        *bench(),
         box("cage_back", "container", [t, w, h], [x1 - t / 2, cy, h / 2]),
         box("cage_side_0", "container", [x1 - x0, t, h], [cx, cy - w / 2 + t / 2, h / 2]),
         box("cage_side_1", "container", [x1 - x0, t, h], [cx, cy + w / 2 - t / 2, h / 2]),
