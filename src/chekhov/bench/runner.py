@@ -37,7 +37,12 @@ from chekhov.bench.config import BenchConfig
 from chekhov.bench.database import BenchDatabase
 from chekhov.bench.executors import run_tasks
 from chekhov.bench.progress import ProgressBar
-from chekhov.bench.registry import PlannerSpec, seed_planner_name, settings_text
+from chekhov.bench.registry import (
+    PlannerSpec,
+    planner_settings,
+    seed_planner_name,
+    settings_text,
+)
 from chekhov.bench.solvability import cached_solvable_cases
 from chekhov.bench.task import RunTask, case_hash
 from chekhov.bench.worker import load_roadmap_for
@@ -153,7 +158,7 @@ def _plan_scene(db: BenchDatabase, db_path: Path, config: BenchConfig, scene: st
     for name in config.planners:
         spec = PlannerSpec(name, config.resolution, config.planner_seed)
         planner = spec.build(world, get_roadmap)
-        pid = db.planner_id(name, settings_text(spec.settings(planner, roadmap)))
+        pid = db.planner_id(name, settings_text(planner_settings(spec, planner, roadmap)))
         plan.planner_ids[(scene, name)] = pid
         done = db.done_cases(eid, pid)
         for i in range(len(cases)):

@@ -55,12 +55,12 @@ class SolvabilityReport:
 
 def default_planners(world: World) -> list[Planner]:
     """The cheap default: OMPL's RRTConnect (LazyPRM when OMPL is missing)."""
+    from chekhov.planners.registry import make_planner
+
     try:
-        from chekhov.planners.ompl_planner import OmplPlanner
-        return [OmplPlanner(world, "RRTConnect", seed=0)]
+        return [make_planner("RRTConnect", world)]
     except ChekhovError:  # pragma: no cover - ompl is a dependency
-        from chekhov.planners.lazy_prm import LazyPRM
-        return [LazyPRM(world, seed=0)]
+        return [make_planner("LazyPRM", world)]
 
 
 def solvability_pass(world: World, cases: CaseSet, planners: Sequence[Planner] | None = None,

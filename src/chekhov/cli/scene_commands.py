@@ -183,7 +183,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     TrajOpt (every answer exactly checked), report timings, write a picture of one plan."""
     from chekhov.bench.cases import generate_cases
     from chekhov.planners.base import path_length
-    from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt
+    from chekhov.planners.registry import make_planner
     from chekhov.roadmap.io import load_or_build_roadmap
     from chekhov.scene.io import builtin_scenes
     from chekhov.viewer.render import render_scene
@@ -195,7 +195,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         t0 = time.perf_counter()
         roadmap = load_or_build_roadmap(world)
         t_map = time.perf_counter() - t0
-        planner = RoadmapTrajOpt(world, roadmap)
+        planner = make_planner("Roadmap+TrajOpt", world, roadmap)
         cases = generate_cases(world, args.cases, seed=0)
         planner.plan(cases.q_start[0], cases.goal(0))  # load compiled kernels
         times, ratios, solved, exact_ok, shown = [], [], 0, 0, None

@@ -3,7 +3,6 @@ trajectory as end-effector traces with a readable summary. No viser import here.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -11,28 +10,15 @@ from numpy.typing import NDArray
 
 from chekhov.errors import ChekhovError
 from chekhov.planners.base import Planner, PlanResult
-from chekhov.planners.ompl_planner import OmplPlanner
-from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt
-from chekhov.planners.trajopt_planner import SeededTrajOpt, TrajOptPlanner
+from chekhov.planners.registry import GROUPS, canonical_planner_name, make_planner
 from chekhov.roadmap.graph import Roadmap
 from chekhov.world import World
 
 Array = NDArray[np.float64]
 
 ROADMAP_TRAJOPT = "Roadmap+TrajOpt"
-PLANNER_FACTORIES: dict[str, Callable[[World, Roadmap | None], Planner]] = {
-    ROADMAP_TRAJOPT: lambda w, rm: RoadmapTrajOpt(w, _need(rm)),
-    "TrajOpt": lambda w, rm: TrajOptPlanner(w),
-    "RRTConnect": lambda w, rm: OmplPlanner(w, "RRTConnect", seed=0),
-    "RRTConnect+TrajOpt": lambda w, rm: SeededTrajOpt(w, OmplPlanner(w, "RRTConnect", seed=0)),
-}
-PLANNER_NAMES: tuple[str, ...] = tuple(PLANNER_FACTORIES)
-
-
-def _need(roadmap: Roadmap | None) -> Roadmap:
-    if roadmap is None:
-        raise ChekhovError(f"{ROADMAP_TRAJOPT} needs a roadmap")
-    return roadmap
+# the planner menu: the registry's fast group (chekhov.planners.registry)
+PLANNER_NAMES: tuple[str, ...] = GROUPS["fast"]
 
 
 class PlannerPool:
@@ -44,10 +30,12 @@ class PlannerPool:
         self._planners: dict[str, Planner] = {}
 
     def get(self, name: str) -> Planner:
-        if name not in PLANNER_FACTORIES:
-            raise ChekhovError(f"unknown planner '{name}'; available: {list(PLANNER_NAMES)}")
+        name = canonical_planner_name(name)
+        if name not in PLANNER_NAMES:
+            raise ChekhovError(f"planner '{name}' is not in the viewer's menu "
+                               f"{list(PLANNER_NAMES)}")
         if name not in self._planners:
-            self._planners[name] = PLANNER_FACTORIES[name](self.world, self.roadmap)
+            self._planners[name] = make_planner(name, self.world, self.roadmap)
         return self._planners[name]
 
 
