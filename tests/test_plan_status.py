@@ -84,3 +84,9 @@ def test_straight_line_trajopt_reports_ik_and_optimise(world, cases):
     assert [s.stage for s in r.stages] == [Stage.IK, Stage.STRAIGHT_LINE, Stage.OPTIMISE]
     assert r.seed_from is Stage.STRAIGHT_LINE
     assert r.stages[-1].status is r.status
+
+
+def test_warmup_plans_once_and_says_how_long(world, roadmap):
+    planner = RoadmapTrajOpt(world, roadmap)
+    t = planner.warmup(seed=1, time_limit_s=0.5)
+    assert 0.0 < t < 10.0

@@ -70,6 +70,19 @@ class PlannerBase(ABC):
             result = self._plan(query)
         return certify(self.world, query, result)
 
+    def warmup(self, *, seed: int = 0, time_limit_s: float = 1.0) -> float:
+        """Do once what a first query would (compile or load the numba kernels, fill caches):
+        plan between two random collision-free configurations (drawn with ``seed``) towards
+        the second's end-effector pose, and discard the answer. Returns the time it took (s).
+        Call it before timing a planner or before a robot must react."""
+        t0 = time.perf_counter()
+        robot = self.world.robot
+        Q = robot.sample_uniform(np.random.default_rng(seed), 64)
+        Q = Q[self.world.fast.valid(Q)]
+        if len(Q) >= 2:
+            self.plan(Q[0], Goal.pose(robot.compute_ee_pose(Q[1])), time_limit_s)
+        return time.perf_counter() - t0
+
     @abstractmethod
     def _plan(self, query: PlanQuery) -> PlanResult:
         """Answer a checked query (its ``deadline`` is the promise to keep)."""
