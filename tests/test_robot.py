@@ -11,6 +11,12 @@ def baxter() -> Robot:
     return Robot.load("baxter_left")
 
 
+@pytest.fixture(scope="module", params=["baxter_left", "panda"])
+def robot(request) -> Robot:
+    """Each built-in robot: kinematics, Jacobians and IK are checked on both."""
+    return Robot.load(request.param)
+
+
 def test_group_limits_and_fixed_joints(baxter):
     assert baxter.dof == 7
     assert baxter.joint_names[0] == "left_s0" and baxter.joint_names[-1] == "left_w2"
@@ -29,21 +35,21 @@ def test_base_pose_moves_everything(baxter):
     assert np.allclose(moved.compute_ee_pose(q), T @ baxter.compute_ee_pose(q))
 
 
-def test_batched_fk_equals_looped(baxter, rng):
-    Q = baxter.sample_uniform(rng, 20)
-    batch = baxter.compute_ee_poses(Q)
-    assert np.allclose(batch, np.stack([baxter.compute_ee_pose(q) for q in Q]))
+def test_batched_fk_equals_looped(robot, rng):
+    Q = robot.sample_uniform(rng, 20)
+    batch = robot.compute_ee_poses(Q)
+    assert np.allclose(batch, np.stack([robot.compute_ee_pose(q) for q in Q]))
 
 
-def test_frame_jacobian_matches_finite_differences(baxter, rng):
-    q = baxter.sample_uniform(rng, 1)[0]
-    J = baxter.compute_frame_jacobian(q)
+def test_frame_jacobian_matches_finite_differences(robot, rng):
+    q = robot.sample_uniform(rng, 1)[0]
+    J = robot.compute_frame_jacobian(q)
     eps = 1e-6
-    T0 = baxter.compute_ee_pose(q)
-    for k in range(7):
-        dq = np.zeros(7)
+    T0 = robot.compute_ee_pose(q)
+    for k in range(robot.dof):
+        dq = np.zeros(robot.dof)
         dq[k] = eps
-        T1 = baxter.compute_ee_pose(q + dq)
+        T1 = robot.compute_ee_pose(q + dq)
         v_lin = (T1[:3, 3] - T0[:3, 3]) / eps
         w = pin.log3(T1[:3, :3] @ T0[:3, :3].T) / eps
         assert np.allclose(J[:3, k], v_lin, atol=1e-5)
@@ -83,35 +89,60 @@ def test_cylinder_and_box_covers_contain_their_surface(rng):
     assert _covered(np.vstack([corners, rng.uniform(-1, 1, (2000, 3)) * half]), c, rad)
 
 
-def test_sphere_model_covers_robot_geometry(baxter, rng):
-    """Points on every moving collision cylinder / box lie inside that geometry's spheres."""
+def _surface_points(geo, rng, n=600):
+    """Points on a coal shape's surface (its own frame): cylinder rims, caps and side; box
+    corners, edges and faces; for a mesh every vertex and random points on every triangle."""
     import coal
 
-    sm = build_sphere_model(baxter)
-    for gi in baxter.moving_geometries:
-        g = baxter.collision_model.geometryObjects[gi]
-        geo = g.geometry
-        if isinstance(geo, coal.Cylinder):
-            a = rng.uniform(0, 2 * np.pi, 500)
-            local = np.column_stack([geo.radius * np.cos(a), geo.radius * np.sin(a),
-                                     rng.choice([-1, 1], 500) * geo.halfLength])
-        elif isinstance(geo, coal.Box):
-            local = rng.choice([-1, 1], (500, 3)) * np.asarray(geo.halfSide)
-        else:
-            continue
-        pts = local @ g.placement.rotation.T + g.placement.translation
+    from chekhov.robot.spheres import mesh_triangles
+
+    if isinstance(geo, coal.Cylinder):
+        a = rng.uniform(0, 2 * np.pi, n)
+        r = np.where(rng.random(n) < 0.5, geo.radius, geo.radius * np.sqrt(rng.random(n)))
+        z = np.where(r == geo.radius, rng.uniform(-1, 1, n), rng.choice([-1, 1], n))
+        return np.column_stack([r * np.cos(a), r * np.sin(a), z * geo.halfLength])
+    if isinstance(geo, coal.Box):
+        u = rng.uniform(-1, 1, (n, 3))
+        face = rng.integers(0, 3, n)
+        u[np.arange(n), face] = rng.choice([-1, 1], n)
+        corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
+        return np.vstack([corners, u]) * np.asarray(geo.halfSide)
+    if isinstance(geo, coal.Sphere):
+        v = rng.normal(size=(n, 3))
+        return geo.radius * v / np.linalg.norm(v, axis=1, keepdims=True)
+    tris = mesh_triangles(geo)                              # (F, 3, 3)
+    w = rng.dirichlet(np.ones(3), size=(len(tris), 4))      # 4 points on every triangle
+    return np.vstack([tris.reshape(-1, 3), np.einsum("fkc,fcx->fkx", w, tris).reshape(-1, 3)])
+
+
+@pytest.mark.parametrize("name", ["baxter_left", "panda"])
+def test_sphere_model_covers_robot_geometry(name, rng):
+    """Every moving collision geometry — cylinders, boxes and meshes — lies inside the union of
+    its spheres: every mesh vertex and points on every triangle, rims, corners and faces. The
+    fast checker is conservative only because of this (a sphere miss is a certain miss)."""
+    robot = Robot.load(name)
+    sm = build_sphere_model(robot)
+    kinds = set()
+    for gi in robot.moving_geometries:
+        g = robot.collision_model.geometryObjects[gi]
+        kinds.add(type(g.geometry).__name__)
+        pts = _surface_points(g.geometry, rng) @ g.placement.rotation.T + g.placement.translation
         mine = sm.geometries == gi
-        assert _covered(pts, sm.centers[mine], sm.radii[mine]), g.name
+        d = np.linalg.norm(pts[:, None, :] - sm.centers[mine][None], axis=2) - sm.radii[mine]
+        outside = d.min(axis=1)
+        assert outside.max() <= 1e-9, (g.name, float(outside.max()))
+    assert kinds >= ({"BVHModelOBBRSS"} if name == "panda" else {"Cylinder", "Box"}), kinds
 
 
-def test_ik_reaches_pose_and_gives_distinct_solutions(baxter, rng):
-    q = np.array([0.2, -0.4, 0.1, 1.0, 0.2, 0.6, -0.3])
-    T = baxter.compute_ee_pose(q)
-    sols = solve_ik(baxter, T, 3, rng=rng)
+def test_ik_reaches_pose_and_gives_distinct_solutions(robot, rng):
+    q = np.clip(np.array([0.2, -0.4, 0.1, 1.0, 0.2, 0.6, -0.3]), robot.lower + 0.1,
+                robot.upper - 0.1)
+    T = robot.compute_ee_pose(q)
+    sols = solve_ik(robot, T, 3, rng=rng)
     assert 1 <= len(sols) <= 3
     for s in sols:
-        assert baxter.within_limits(s)[0]
-        Ts = baxter.compute_ee_pose(s)
+        assert robot.within_limits(s)[0]
+        Ts = robot.compute_ee_pose(s)
         assert np.linalg.norm(Ts[:3, 3] - T[:3, 3]) < 2e-4
         assert np.linalg.norm(pin.log3(Ts[:3, :3].T @ T[:3, :3])) < 2e-3
     for i in range(len(sols)):
