@@ -19,6 +19,7 @@ from chekhov.errors import (
     PlanningInputError,
     RobotError,
     SceneError,
+    TrajectoryError,
 )
 from chekhov.planners.base import Planner, PlannerBase, PlanResult, path_length, resample_path
 from chekhov.planners.lazy_prm import LazyPRM, LazyPRMConfig
@@ -40,6 +41,8 @@ from chekhov.robot.robot import Robot
 from chekhov.robot.spheres import SphereModel, build_sphere_model
 from chekhov.scene.io import builtin_scenes, load_scene, save_scene, scene_from_dict
 from chekhov.scene.model import Articulation, Grasp, Pose, Region, Scene, SceneObject, Shape
+from chekhov.timing import TimingConfig, time_parameterize
+from chekhov.trajectory import JointTrajectory
 from chekhov.trajopt.config import TrajOptConfig
 from chekhov.trajopt.problem import TrajOptProblem, build_trajopt
 from chekhov.trajopt.result import TrajOptResult
@@ -57,6 +60,7 @@ __all__ = [
     "Grasp",
     "IKConfig",
     "IKError",
+    "JointTrajectory",
     "LazyPRM",
     "LazyPRMConfig",
     "OmplPlanner",
@@ -88,10 +92,12 @@ __all__ = [
     "SphereSettings",
     "Stage",
     "StageReport",
+    "TimingConfig",
     "TrajOptConfig",
     "TrajOptPlanner",
     "TrajOptProblem",
     "TrajOptResult",
+    "TrajectoryError",
     "World",
     "build_roadmap",
     "build_sphere_model",
@@ -108,5 +114,6 @@ __all__ = [
     "scene_from_dict",
     "solve_ik",
     "solve_trajopt",
+    "time_parameterize",
 ]
 __version__ = "0.1.0"

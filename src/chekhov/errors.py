@@ -32,3 +32,8 @@ class BenchError(ChekhovError):
 
 class DeadlineError(ChekhovError):
     """A stage ran out of its query's time limit (planners answer "timeout")."""
+
+
+class TrajectoryError(ChekhovError):
+    """A malformed timed trajectory or trajectory file (names the field), or a time
+    parameterisation that cannot be done."""

@@ -21,7 +21,9 @@ from chekhov.planners.certify import certify
 from chekhov.planners.query import PlanQuery, make_query
 from chekhov.planners.result import PlanResult
 from chekhov.planners.status import PlanStatus
+from chekhov.planners.timed import timed_trajectory
 from chekhov.robot.goal import Goal
+from chekhov.timing import TimingConfig
 
 Array = NDArray[np.float64]
 
@@ -57,6 +59,9 @@ class PlannerBase(ABC):
 
     name: str
     world: World
+    timing: TimingConfig | None = None
+    """Set it (e.g. ``TimingConfig()``) and every success carries its timed trajectory
+    (``PlanResult.trajectory``, made after the certified path, outside the time limit)."""
 
     def plan(self, q_start: Array, goal: Goal, time_limit_s: float = 10.0) -> PlanResult:
         """Plan from q_start (K,) rad to the goal within time_limit_s (s; inf for none)."""
@@ -68,7 +73,15 @@ class PlannerBase(ABC):
                                 info={"error": f"{bad_end.value[8:]} configuration in collision"})
         else:
             result = self._plan(query)
-        return certify(self.world, query, result)
+        result = certify(self.world, query, result)
+        if self.timing is not None and result.success and result.path is not None:
+            t = time.perf_counter()
+            timed = timed_trajectory(self.world, result.path, self.timing)
+            result = replace(result, trajectory=timed.trajectory,
+                             timing_s={**result.timing_s,
+                                       "time_parameterize": time.perf_counter() - t},
+                             info={**result.info, "timing_method": timed.method})
+        return result
 
     def warmup(self, *, seed: int = 0, time_limit_s: float = 1.0) -> float:
         """Do once what a first query would (compile or load the numba kernels, fill caches):

@@ -10,6 +10,7 @@ from numpy.typing import NDArray
 from chekhov.collision.path_check import PathCertificate
 from chekhov.paths import path_length
 from chekhov.planners.status import PlanStatus, Stage, StageReport
+from chekhov.trajectory import JointTrajectory
 
 Array = NDArray[np.float64]
 
@@ -33,6 +34,8 @@ class PlanResult:
         stages: what each stage did, in order (:class:`StageReport`).
         seed_from: the stage whose path the final optimisation started from (its report in
             ``stages`` says whether it found one); None for planners without a seed.
+        trajectory: ``path`` timed (:class:`~chekhov.trajectory.JointTrajectory`, certified
+            like the path) when the planner's ``timing`` is set; None otherwise.
     """
 
     success: bool
@@ -45,6 +48,7 @@ class PlanResult:
     certificate: PathCertificate | None = None
     stages: tuple[StageReport, ...] = ()
     seed_from: Stage | None = None
+    trajectory: JointTrajectory | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.status, PlanStatus):
