@@ -1,0 +1,24 @@
+"""The numbered examples run and say what they promise."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+EXAMPLES = Path(__file__).parents[1] / "examples"
+
+
+def _run(name, *args):
+    out = subprocess.run([sys.executable, str(EXAMPLES / name), *map(str, args)],
+                         capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    return out.stdout
+
+
+def test_plan_example_answers_certified():
+    assert _run("00_plan.py").startswith("solved ")
+
+
+def test_timed_trajectory_example_writes_its_plot(tmp_path):
+    png = tmp_path / "t.png"
+    stdout = _run("04_timed_trajectory.py", png)
+    assert stdout.startswith("solved: ") and png.stat().st_size > 10_000
