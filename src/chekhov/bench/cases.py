@@ -9,8 +9,9 @@ Determinism: case ``i`` of ``generate_cases(world, n, seed)`` is drawn from its 
 stream ``numpy.random.default_rng([seed, i])``, so it does not depend on ``n`` (the first 100
 cases of ``--n 5000`` are the cases of ``--n 100``) and the same scene, robot and seed give the
 same cases on every machine. Case files are **not shipped**: they are generated reproducibly on
-first use and cached (:func:`cached_cases`, under ``$CHEKHOV_CACHE/cases`` or
-``~/.cache/chekhov/cases``); ``chekhov cases generate`` writes one explicitly.
+first use and cached (:func:`cached_cases`, under :func:`default_cache_dir`: beside the
+roadmaps, ``~/.cache/chekhov/cases`` by default); ``chekhov cases generate`` writes one
+explicitly.
 
 File format (``CASE_FORMAT`` version ``CASE_FORMAT_VERSION`` = 1): a NumPy ``.npz`` archive
 (``numpy.load(path, allow_pickle=False)`` reads it) with
@@ -304,9 +305,14 @@ def generate_cases(world: World, n: int, seed: int = 0) -> CaseSet:
 
 
 def default_cache_dir() -> Path:
-    """``$CHEKHOV_CACHE/cases``, else ``~/.cache/chekhov/cases``."""
-    root = os.environ.get("CHEKHOV_CACHE")
-    return (Path(root) if root else Path.home() / ".cache" / "chekhov") / "cases"
+    """``$CHEKHOV_CACHE/cases`` (cases only), else ``$CHEKHOV_CACHE_DIR/cases`` (the
+    roadmaps' variable too), else ``$XDG_CACHE_HOME/chekhov/cases`` or
+    ``~/.cache/chekhov/cases``: beside the roadmaps."""
+    root = os.environ.get("CHEKHOV_CACHE") or os.environ.get("CHEKHOV_CACHE_DIR")
+    if root:
+        return Path(root) / "cases"
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "chekhov" / "cases"
 
 
 def cached_cases(world: World, n: int, seed: int = 0, cache_dir: str | Path | None = None
