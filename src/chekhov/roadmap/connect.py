@@ -110,22 +110,23 @@ class Connector:
                                          deadline=deadline)]
         if found or not self.config.bridges:
             return found
-        attempts: list[Callable[[Array], list[Connection]]] = [
+        attempts: list[Callable[[Array, float], list[Connection]]] = [
             self._via_wrist, self._via_proximal, self._via_random]
         if last_resorts:
-            attempts += [lambda q_: self._via_tree(q_, deadline), self._wide]
+            attempts += [self._via_tree, self._wide]
         for attempt in attempts:
             if time.perf_counter() >= deadline:
                 break
-            found = attempt(q)
+            found = attempt(q, deadline)
             if found:
                 return sorted(found, key=lambda c: c.cost)
         return []
 
     def _bridge(self, q: Array, Q_mid: Array, kind: str, n_candidates: int,
-                ) -> list[Connection]:
+                deadline: float = math.inf) -> list[Connection]:
         """Connections q → q_mid → node for the first intermediates (rows of Q_mid) that are
-        free and reachable from q in a straight line."""
+        free and reachable from q in a straight line; no intermediate is tried after
+        ``deadline`` (a ``time.perf_counter()`` value, s)."""
         fast = self.world.fast
         within = self.world.robot.within_limits(Q_mid)
         Q_mid = Q_mid[within]
@@ -137,21 +138,24 @@ class Connector:
         Q_mid = Q_mid[self._motions(np.repeat(q[None], len(Q_mid), axis=0), Q_mid)]
         out: list[Connection] = []
         for q_mid in Q_mid:
+            if time.perf_counter() >= deadline:
+                break
             c0 = float(np.linalg.norm(q_mid - q))
             out += [Connection(n, c0 + c, q_mid[None], kind)
-                    for n, c in self.direct(q_mid, n_candidates, batches=(4,))]
+                    for n, c in self.direct(q_mid, n_candidates, batches=(4,),
+                                            deadline=deadline)]
             if out:
                 break
         return out
 
-    def _via_wrist(self, q: Array) -> list[Connection]:
+    def _via_wrist(self, q: Array, deadline: float = math.inf) -> list[Connection]:
         q_mid = q.copy()
         q_mid[self.proximal:] = self.distal
         if np.allclose(q_mid, q):
             return []
-        return self._bridge(q, q_mid[None], "wrist", self.config.connect_candidates)
+        return self._bridge(q, q_mid[None], "wrist", self.config.connect_candidates, deadline)
 
-    def _via_proximal(self, q: Array) -> list[Connection]:
+    def _via_proximal(self, q: Array, deadline: float = math.inf) -> list[Connection]:
         P = self.proximal
         _, idx = self.nearest.query(q, 8)
         idx = np.atleast_1d(idx)
@@ -168,17 +172,18 @@ class Connector:
             self.roadmap.nodes[n] - m)), m[None], "proximal")
             for n, m in zip(idx[ok], Q_mid[ok], strict=True)][: self.config.max_connections]
 
-    def _via_random(self, q: Array) -> list[Connection]:
+    def _via_random(self, q: Array, deadline: float = math.inf) -> list[Connection]:
         M, K = self.config.bridge_samples, len(q)
         u = self.rng.normal(size=(M, K))
         u /= np.linalg.norm(u, axis=1, keepdims=True)
         r = self.rng.uniform(0.1, self.config.bridge_radius, size=(M, 1))
         Q_mid = np.clip(q + u * r, self.world.robot.lower, self.world.robot.upper)
-        return self._bridge(q, Q_mid, "random", 8)
+        return self._bridge(q, Q_mid, "random", 8, deadline)
 
-    def _wide(self, q: Array) -> list[Connection]:
+    def _wide(self, q: Array, deadline: float = math.inf) -> list[Connection]:
         return [Connection(n, c, q[:0].reshape(0, len(q)), "wide")
-                for n, c in self.direct(q, self.config.wide_candidates, batches=(32,))]
+                for n, c in self.direct(q, self.config.wide_candidates, batches=(32,),
+                                        deadline=deadline)]
 
     def _via_tree(self, q: Array, deadline: float = math.inf) -> list[Connection]:
         """Grow an RRT from q in batches, for at most ``tree_time_s`` and not past
