@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from chekhov.planners.base import path_length
-from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt
+from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt, RoadmapTrajOptConfig
 from chekhov.roadmap.build import build_roadmap
 from chekhov.roadmap.config import RoadmapConfig
 from chekhov.roadmap.graph import Roadmap
@@ -127,8 +127,8 @@ def run_planner(world: World, roadmap: Roadmap, starts: np.ndarray, goals: np.nd
     """Roadmap + TrajOpt on the cases: wall and CPU time of whole queries (seed, shortcut,
     TrajOpt, validation), path lengths, and collisions by the exact checker at 100 substeps:
     of the optimised trajectories before any fallback, and of what was returned (must be 0)."""
-    planner = RoadmapTrajOpt(world, roadmap, seeder_config=seeder_config,
-                             straight_line_first=straight_line_first)
+    planner = RoadmapTrajOpt(world, roadmap, RoadmapTrajOptConfig(
+        seeder=seeder_config, straight_line_first=straight_line_first))
     T_goals = world.robot.compute_ee_poses(goals)
     planner.plan(starts[0], Goal.pose(T_goals[0]))  # load compiled kernels
     wall, cpu, lengths, seed_lengths, ratios = [], [], [], [], []

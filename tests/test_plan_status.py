@@ -6,7 +6,7 @@ import pytest
 
 from chekhov import OmplPlanner, PlanResult, PlanStatus, SeededTrajOpt, Stage, TrajOptPlanner
 from chekhov.bench.cases import generate_cases
-from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt
+from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt, RoadmapTrajOptConfig
 from chekhov.roadmap.build import build_roadmap
 from chekhov.roadmap.config import RoadmapConfig
 
@@ -36,7 +36,7 @@ def test_a_status_is_an_enum_equal_to_its_string_and_unknown_ones_are_refused():
 
 
 def test_the_paper_planner_reports_seed_shortcut_and_optimise(world, cases, roadmap):
-    planner = RoadmapTrajOpt(world, roadmap, straight_line_first=False)
+    planner = RoadmapTrajOpt(world, roadmap, RoadmapTrajOptConfig(straight_line_first=False))
     solved = 0
     for i in range(len(cases)):
         r = planner.plan(cases.q_start[i], cases.goal(i), 2.0)

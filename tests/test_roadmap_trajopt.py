@@ -6,7 +6,7 @@ import pytest
 
 from chekhov.bench.cases import generate_cases
 from chekhov.planners.base import path_length
-from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt
+from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt, RoadmapTrajOptConfig
 from chekhov.planners.shortcut import shortcut_path
 from chekhov.roadmap.build import build_roadmap
 from chekhov.roadmap.config import RoadmapConfig
@@ -35,7 +35,7 @@ def planner(world, roadmap):
 @pytest.fixture(scope="module")
 def paper_planner(world, roadmap):
     """The paper's planner: every query seeded from the roadmap."""
-    return RoadmapTrajOpt(world, roadmap, straight_line_first=False)
+    return RoadmapTrajOpt(world, roadmap, RoadmapTrajOptConfig(straight_line_first=False))
 
 
 def check_answer(world, path, q_start, goal, obstacle=None):

@@ -25,7 +25,7 @@ from chekhov.planners.base import Planner, PlannerBase, PlanResult, path_length,
 from chekhov.planners.lazy_prm import LazyPRM, LazyPRMConfig
 from chekhov.planners.ompl_planner import OmplPlanner
 from chekhov.planners.query import PlanQuery
-from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt
+from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt, RoadmapTrajOptConfig
 from chekhov.planners.status import PlanStatus, Stage, StageReport
 from chekhov.planners.trajopt_planner import SeededTrajOpt, TrajOptPlanner
 from chekhov.roadmap.build import build_roadmap
@@ -78,6 +78,7 @@ __all__ = [
     "RoadmapMismatchError",
     "RoadmapSeeder",
     "RoadmapTrajOpt",
+    "RoadmapTrajOptConfig",
     "Robot",
     "RobotDescription",
     "RobotError",

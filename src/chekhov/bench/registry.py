@@ -49,13 +49,14 @@ def planner_settings(spec: PlannerSpec, planner: Planner, roadmap: Roadmap | Non
         d["roadmap"] = p.roadmap.meta.config.to_dict()
         d["roadmap_nodes"] = len(p.roadmap.nodes)
         d["roadmap_edges"] = len(p.roadmap.edges)
-        d["shortcut"] = p.shortcut
-        d["straight_line_first"] = p.straight_line_first
-        d["straight_line_time_s"] = p.straight_line_time_s
-        d["straight_line_fallback"] = p.straight_line_fallback
-        d["goal_routes"] = p.goal_routes
+        c = p.config    # the same keys as before the config object, so resumed runs match
+        d["shortcut"] = c.shortcut
+        d["straight_line_first"] = c.straight_line_first
+        d["straight_line_time_s"] = c.straight_line_time_s
+        d["straight_line_fallback"] = c.straight_line_fallback
+        d["goal_routes"] = c.goal_routes
         d["seeder"] = asdict(p.seeder.config) if hasattr(p.seeder, "config") else {}
-        d["trajopt"] = _trajopt_settings(p.config)
+        d["trajopt"] = _trajopt_settings(c.trajopt)
     elif isinstance(p, OmplPlanner | LazyPRM):
         d.update(_sampling_settings(p))
     return json.loads(json.dumps(d, default=str))

@@ -109,9 +109,9 @@ class PlannerSpec:
 
         name = canonical_planner_name(self.name)
         if name in ("Roadmap+TrajOpt", "Roadmap+TrajOpt(paper)"):
-            from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt
-            return RoadmapTrajOpt(world, roadmap(), name=name,
-                                  straight_line_first=name == "Roadmap+TrajOpt")
+            from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt, RoadmapTrajOptConfig
+            config = RoadmapTrajOptConfig(straight_line_first=name == "Roadmap+TrajOpt")
+            return RoadmapTrajOpt(world, roadmap(), config, name=name)
         if name == "TrajOpt":
             return TrajOptPlanner(world, name=name)
         base = seed_planner_name(name)

@@ -4,6 +4,7 @@ by TrajOpt, validated exactly. It never returns a trajectory the exact checker r
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -27,9 +28,47 @@ from chekhov.world import World
 Array = NDArray[np.float64]
 
 
+@dataclass(frozen=True)
+class RoadmapTrajOptConfig:
+    """Roadmap + TrajOpt's settings (see :class:`RoadmapTrajOpt` for what each does).
+
+    Attributes:
+        trajopt: TrajOpt's settings. seeder: the roadmap queries' settings.
+        shortcut: shortcut each roadmap route greedily before TrajOpt.
+        straight_line_first: TrajOpt from a straight line first, for at most
+            ``straight_line_time_s`` s (False: the paper's planner, every query from the
+            roadmap).
+        straight_line_fallback: when the roadmap cannot connect or dynamic obstacles cut every
+            route, TrajOpt from a straight line for at most ``fallback_time_s`` s.
+        goal_routes: routes through the roadmap (one per goal IK solution) shortcut and
+            compared; TrajOpt starts from the shortest.
+    """
+
+    trajopt: TrajOptConfig = field(default_factory=TrajOptConfig)
+    seeder: SeederConfig = field(default_factory=SeederConfig)
+    shortcut: bool = True
+    straight_line_first: bool = True
+    straight_line_time_s: float = 0.04
+    straight_line_fallback: bool = True
+    fallback_time_s: float = 0.25
+    goal_routes: int = 6
+
+    def __post_init__(self) -> None:
+        for name in ("straight_line_time_s", "fallback_time_s"):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and v >= 0):
+                raise ChekhovError(f"RoadmapTrajOptConfig.{name}: must be a number of s >= 0, "
+                                   f"got {v!r}")
+        if not (isinstance(self.goal_routes, int) and self.goal_routes >= 1):
+            raise ChekhovError(f"RoadmapTrajOptConfig.goal_routes: must be an integer >= 1, "
+                               f"got {self.goal_routes!r}")
+
+
 class RoadmapTrajOpt(PlannerBase):
     """Roadmap + TrajOpt (Dai et al.): seed from the roadmap against the world's current
     obstacles (dynamic ones included), optimise, check exactly at 100 substeps per segment.
+    Its settings are a frozen :class:`RoadmapTrajOptConfig` (``config``); the names below are
+    its fields.
 
     ``straight_line_first`` (default; False gives the paper's planner): first give TrajOpt
     ``straight_line_time_s`` (40 ms) from a straight line to the collision-free IK solution
@@ -70,35 +109,28 @@ class RoadmapTrajOpt(PlannerBase):
     with status "collision". ``time_s`` includes the validation.
     """
 
-    def __init__(self, world: World, roadmap: Roadmap, config: TrajOptConfig | None = None,
-                 seeder_config: SeederConfig | None = None, name: str = "Roadmap+TrajOpt",
-                 shortcut: bool = True, straight_line_fallback: bool = True,
-                 fallback_time_s: float = 0.25, straight_line_first: bool = True,
-                 straight_line_time_s: float = 0.04, goal_routes: int = 6) -> None:
+    def __init__(self, world: World, roadmap: Roadmap,
+                 config: RoadmapTrajOptConfig | None = None, *,
+                 name: str = "Roadmap+TrajOpt") -> None:
         self.world = world
         self.roadmap = roadmap
-        self.config = config if config is not None else TrajOptConfig()
-        self.seeder = RoadmapSeeder(world, roadmap, seeder_config)
+        self.config = config if config is not None else RoadmapTrajOptConfig()
+        self.seeder = RoadmapSeeder(world, roadmap, self.config.seeder)
         self.name = name
-        self.shortcut = shortcut
-        self.straight_line_fallback = straight_line_fallback
-        self.fallback_time_s = fallback_time_s
-        self.straight_line_first = straight_line_first
-        self._line_planner = TrajOptPlanner(world, self.config)
-        self.straight_line_time_s = straight_line_time_s
-        self.goal_routes = goal_routes
+        self._trajopt = self.config.trajopt
+        self._line_planner = TrajOptPlanner(world, self._trajopt)
         self._distances = TrajectoryDistances(world.fast)
 
     def _plan(self, query: PlanQuery) -> PlanResult:
         run = _Run(query)
-        if self.straight_line_first:
+        if self.config.straight_line_first:
             first = self._straight_line_try(run)
             if first is not None and first.success:
                 return first
         if query.expired():
             return self._result(run, False, None, PlanStatus.TIMEOUT)
         t_seed = time.perf_counter()
-        found = self.seeder.seeds(query.q_start, query.goal, self.goal_routes,
+        found = self.seeder.seeds(query.q_start, query.goal, self.config.goal_routes,
                                   deadline=query.deadline)
         s = found[0]
         run.timing["seed"] = s.timing_s.get("total", time.perf_counter() - t_seed)
@@ -114,7 +146,7 @@ class RoadmapTrajOpt(PlannerBase):
         run.timing["shortcut"] = time.perf_counter() - t1
         run.stages.append(StageReport(Stage.SHORTCUT, PlanStatus.SOLVED,
                                       run.timing["shortcut"], short))
-        seed = resample_path(short, self.config.max_step_rad)
+        seed = resample_path(short, self._trajopt.max_step_rad)
         if len(seed) < 2:
             seed = np.vstack([seed, seed])
         if query.expired():
@@ -124,7 +156,7 @@ class RoadmapTrajOpt(PlannerBase):
 
     def _shortcut(self, path: Array, query: PlanQuery) -> Array:
         return shortcut_path(self.world.fast, path, deadline=query.deadline) \
-            if self.shortcut else path
+            if self.config.shortcut else path
 
     def _result(self, run: _Run, success: bool, path: Array | None, status: PlanStatus,
                 seed: Array | None = None, info: dict[str, object] | None = None,
@@ -142,13 +174,13 @@ class RoadmapTrajOpt(PlannerBase):
         try:
             q_goal = self._line_planner.goal_configuration(
                 query.q_start, query.goal,
-                deadline=min(query.deadline, t0 + self.straight_line_time_s))
+                deadline=min(query.deadline, t0 + self.config.straight_line_time_s))
         except ChekhovError as e:
             q_goal = None
             run.stages.append(StageReport(Stage.IK, PlanStatus.NO_IK, time.perf_counter() - t0,
                                           detail={"error": str(e)}))
         run.timing["straight_line"] = time.perf_counter() - t0
-        budget = min(self.straight_line_time_s, query.remaining())
+        budget = min(self.config.straight_line_time_s, query.remaining())
         result = None
         if q_goal is not None and budget > 0:
             result = self._straight_line(run, q_goal, None, {}, budget)
@@ -159,10 +191,10 @@ class RoadmapTrajOpt(PlannerBase):
         """The roadmap had no seed: a bounded straight-line TrajOpt when it could not connect
         or dynamic obstacles cut its routes (``straight_line_fallback``), else the failure."""
         query, status = run.query, PlanStatus.of(s.status)
-        if self.straight_line_fallback and status in (PlanStatus.NO_CONNECTION,
+        if self.config.straight_line_fallback and status in (PlanStatus.NO_CONNECTION,
                                                       PlanStatus.NO_PATH):
             q_goal = self._goal_configuration(query)
-            budget = min(self.fallback_time_s, query.remaining())
+            budget = min(self.config.fallback_time_s, query.remaining())
             if q_goal is not None and budget > 0:
                 return self._straight_line(run, q_goal, status, s.info, budget)
         return self._result(run, False, None, status, info={"seed_info": s.info},
@@ -175,7 +207,7 @@ class RoadmapTrajOpt(PlannerBase):
         trajectory fails the exact check."""
         query, goal = run.query, run.query.goal
         t = time.perf_counter()
-        cfg = self.config.within(query.remaining())
+        cfg = self._trajopt.within(query.remaining())
         try:
             problem = build_trajopt(self.world, query.q_start, goal, seed, cfg, self._distances)
         except ChekhovError as e:
@@ -193,7 +225,7 @@ class RoadmapTrajOpt(PlannerBase):
             t = time.perf_counter()
             retry = solve_trajopt(build_trajopt(
                 self.world, query.q_start, Goal.configuration(seed[-1]), seed,
-                self.config.within(query.remaining()), self._distances), query.deadline)
+                self._trajopt.within(query.remaining()), self._distances), query.deadline)
             run.timing["optimise"] += retry.optimise_s
             run.timing["validate"] += retry.timing_s["validate"]
             run.stages.append(optimise_report(retry, time.perf_counter() - t, Stage.RETRY))
@@ -236,14 +268,14 @@ class RoadmapTrajOpt(PlannerBase):
         query = run.query
         stage = Stage.STRAIGHT_LINE if roadmap_status is None else Stage.FALLBACK
         fail = roadmap_status if roadmap_status is not None else PlanStatus.INFEASIBLE
-        seed = straight_line_seed(query.q_start, q_goal, self.config.n_waypoints)
+        seed = straight_line_seed(query.q_start, q_goal, self._trajopt.n_waypoints)
         info: dict[str, object] = {
             "fallback": "straight_line" if roadmap_status else None,
             "seed_kind": "straight_line", "roadmap_status": roadmap_status or "",
             "seed_info": seed_info, "fallback_to_seed": False}
         t = time.perf_counter()
         try:
-            cfg = self.config.within(budget_s)
+            cfg = self._trajopt.within(budget_s)
             problem = build_trajopt(self.world, query.q_start, query.goal, seed, cfg,
                                     self._distances)
         except ChekhovError as e:
