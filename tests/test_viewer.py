@@ -117,6 +117,12 @@ def test_the_viewer_shows_and_replans_for_the_panda():
         assert r.result.success, r.result.status
         assert w.exact.path_valid(r.path, substeps=100)
         assert v.shown_path() is not None
+        # played in real time: the slider's fraction of the timed trajectory's duration
+        assert r.timed is not None and r.timed.duration > 0
+        q_half = r.timed.sample(0.5 * r.timed.duration)[0]
+        assert np.allclose(r.configuration_at(0.5), q_half)
+        assert np.allclose(r.configuration_at(1.0), r.path[-1], atol=1e-9)
+        assert "motion duration" in v.handles["gui/result"].content
 
 
 def test_taken_port_is_a_clear_error(world, roadmap, cases):

@@ -48,7 +48,6 @@ from chekhov.viewer.planning import (
     ROADMAP_TRAJOPT,
     PlannerPool,
     PlanView,
-    interpolate_path,
     polyline_segments,
 )
 from chekhov.world import World
@@ -346,8 +345,10 @@ class Viewer:
 
         @h["gui/t"].on_update
         def _(_: Any) -> None:
-            if self.view is not None and self.view.path is not None:
-                self._show_q(interpolate_path(self.view.path, float(h["gui/t"].value)))
+            q = None if self.view is None else self.view.configuration_at(
+                float(h["gui/t"].value))
+            if q is not None:
+                self._show_q(q)
 
         @h["gui/show_roadmap"].on_update
         def _(_: Any) -> None:
@@ -401,12 +402,15 @@ class Viewer:
     _phase = 0.0
 
     def _animate_loop(self, period_s: float = 3.0, fps: float = 25.0) -> None:
-        """While "play" is on, run the time slider 0 → 1 in period_s, hold, and loop."""
+        """While "play" is on, run the time slider 0 → 1 — in the timed trajectory's own
+        duration (real time), else in period_s —, hold, and loop."""
         while not self._stop.wait(1.0 / fps):
             if not self.handles["gui/play"].value or self.view is None \
                     or self.view.path is None:
                 continue
-            self._phase += 1.0 / (period_s * fps)
+            timed = self.view.timed
+            period = timed.duration if timed is not None and timed.duration > 0 else period_s
+            self._phase += 1.0 / (period * fps)
             if self._phase > 1.0 + 0.4:
                 self._phase = 0.0
             self.handles["gui/t"].value = round(min(self._phase, 1.0), 3)

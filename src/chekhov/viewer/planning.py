@@ -9,9 +9,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from chekhov.errors import ChekhovError
-from chekhov.planners.base import Planner, PlanResult
+from chekhov.planners.base import Planner, PlannerBase, PlanResult
 from chekhov.planners.registry import GROUPS, canonical_planner_name, make_planner
+from chekhov.planners.status import Stage
 from chekhov.roadmap.graph import Roadmap
+from chekhov.timing import TimingConfig
+from chekhov.trajectory import JointTrajectory
 from chekhov.world import World
 
 Array = NDArray[np.float64]
@@ -35,7 +38,10 @@ class PlannerPool:
             raise ChekhovError(f"planner '{name}' is not in the viewer's menu "
                                f"{list(PLANNER_NAMES)}")
         if name not in self._planners:
-            self._planners[name] = make_planner(name, self.world, self.roadmap)
+            planner = make_planner(name, self.world, self.roadmap)
+            if isinstance(planner, PlannerBase):
+                planner.timing = TimingConfig()   # the viewer plays timed trajectories
+            self._planners[name] = planner
         return self._planners[name]
 
 
@@ -46,9 +52,11 @@ class PlanView:
     Attributes:
         planner: planner name. result: the planner's answer.
         path: the trajectory (T, K) rad, or None when planning failed.
-        seed: the seed (T', K) rad: the roadmap's own path for Roadmap+TrajOpt, the planner's
-            seed otherwise; None when there was none.
+        seed: the seed (T', K) rad: the path of the stage the final optimisation started from
+            (the roadmap's own route, another planner's path, or TrajOpt's straight line);
+            None when there was none.
         ee_path, ee_seed: end-effector positions (T, 3) / (T', 3) in the world, m.
+        timed: the path timed (played in real time), when the planner timed it.
     """
 
     planner: str
@@ -57,16 +65,30 @@ class PlanView:
     seed: Array | None
     ee_path: Array | None
     ee_seed: Array | None
+    timed: JointTrajectory | None = None
 
     @classmethod
     def of(cls, world: World, planner: str, result: PlanResult) -> PlanView:
-        seed = result.info.get("roadmap_seed", result.seed)
+        report = result.seed_report
+        seed = report.path if report is not None and report.stage in (
+            Stage.ROADMAP_SEED, Stage.SEED) and report.path is not None else result.seed
         seed_arr = None if seed is None else np.atleast_2d(np.asarray(seed, dtype=float))
         path = result.path if result.success else None
         ee = world.robot.compute_ee_poses
         return cls(planner, result, path, seed_arr,
                    None if path is None else ee(path)[:, :3, 3],
-                   None if seed_arr is None else ee(seed_arr)[:, :3, 3])
+                   None if seed_arr is None else ee(seed_arr)[:, :3, 3],
+                   result.trajectory if path is not None else None)
+
+    def configuration_at(self, t: float) -> Array | None:
+        """The configuration at fraction t in [0, 1] of the motion: of its duration when it
+        is timed, else of the waypoints (uniform in index)."""
+        if self.path is None:
+            return None
+        if self.timed is not None:
+            q, _, _ = self.timed.sample(float(np.clip(t, 0.0, 1.0)) * self.timed.duration)
+            return np.asarray(q)
+        return interpolate_path(self.path, t)
 
     def summary_markdown(self) -> str:
         """Timing breakdown, path length and status as a Markdown table."""
@@ -75,6 +97,9 @@ class PlanView:
             " (seed fallback)" if r.info.get("fallback_to_seed") else "")),
             ("total", f"{1e3 * r.time_s:.1f} ms")]
         rows += [(f"· {k}", f"{1e3 * v:.1f} ms") for k, v in r.timing_s.items()]
+        if self.timed is not None:
+            rows.append(("motion duration", f"{self.timed.duration:.2f} s "
+                                            f"({r.info.get('timing_method', '')})"))
         if self.path is not None:
             rows.append(("path length", f"{r.path_length:.3f} rad"))
             rows.append(("end-effector travel", f"{ee_length(self.ee_path):.3f} m"))
