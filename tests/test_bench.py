@@ -155,6 +155,8 @@ def test_summary_json_keys_and_cli(tmp, db, capsys):
         assert {"cases", "failure_rate", "mean_runtime_s", "median_runtime_s", "p95_runtime_s",
                 "mean_path_length_rad", "collision_rate"} <= set(s)
         assert s["cases"] == 3
+        if s["failure_rate"] < 1:   # every solved run's motion is timed (s)
+            assert s["mean_duration_s"] > 0 and s["median_duration_s"] > 0
         if name != "Roadmap+TrajOpt":
             assert {"roadmap_mean_runtime_ratio", "roadmap_median_runtime_ratio"} <= set(s)
     assert set(doc["ratios"][SCENE]) == {"TrajOpt", "RRTConnect"}

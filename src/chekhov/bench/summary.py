@@ -9,6 +9,9 @@ Definitions (every run counts, failures included, unless said otherwise):
 * ``mean_runtime_s`` / ``median_runtime_s`` / ``p95_runtime_s``: the planner's time of
   ``plan`` (s) over all runs (failed runs at their time, e.g. the limit).
 * ``mean_path_length_rad``: joint-space length of the returned path, over successful runs.
+* ``mean_duration_s`` / ``median_duration_s``: the returned path's motion time, timed by
+  :func:`chekhov.planners.timed.timed_trajectory` (toppra under the URDF velocity limits and
+  3 rad/s², else ruckig), over successful runs; not part of the runtime.
 * ``collision_rate``: share of returned paths the exact check finds in collision (0 when
   nothing was returned).
 * With a TrajOpt stage: ``mean_trajopt_time_s`` (after the seed), ``mean_seed_length_rad``,
@@ -46,6 +49,8 @@ class PlannerStats:
     mean_path_length_rad: float
     median_path_length_rad: float
     collision_rate: float
+    mean_duration_s: float = math.nan
+    median_duration_s: float = math.nan
     mean_trajopt_time_s: float = math.nan
     median_trajopt_time_s: float = math.nan
     mean_seed_time_s: float = math.nan
@@ -81,6 +86,8 @@ def _stats(scene: str, planner: str, limit: float, rs: list[dict[str, Any]]) -> 
     t = np.array([r["time"] for r in rs], dtype=float)
     ok = [r for r in rs if r["success"]]
     lengths = np.array([r["solution_length"] for r in ok], dtype=float)
+    durations = np.array([r["info"]["duration_s"] for r in ok
+                          if "duration_s" in (r.get("info") or {})], dtype=float)
     returned = [r for r in rs if r["solved"]]
     coll = sum(1 for r in returned if r["exact_collision"])
     extra: dict[str, Any] = {}
@@ -105,6 +112,8 @@ def _stats(scene: str, planner: str, limit: float, rs: list[dict[str, Any]]) -> 
                         mean_path_length_rad=_mean(lengths),
                         median_path_length_rad=_median(lengths),
                         collision_rate=coll / len(returned) if returned else 0.0,
+                        mean_duration_s=_mean(durations),
+                        median_duration_s=_median(durations),
                         statuses=dict(sorted(statuses.items())),
                         case_lengths={int(r["case_index"]): float(r["solution_length"])
                                       for r in ok},

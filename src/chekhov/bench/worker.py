@@ -19,6 +19,7 @@ from chekhov.bench.task import RunTask
 from chekhov.errors import ChekhovError
 from chekhov.planners.base import Planner, PlanResult, path_length
 from chekhov.planners.status import PlanStatus, Stage
+from chekhov.planners.timed import timed_trajectory
 from chekhov.roadmap.graph import Roadmap
 from chekhov.robot.goal import Goal
 from chekhov.world import World
@@ -133,6 +134,10 @@ class BenchWorker:
         if path is not None:
             exact_valid = bool(world.exact.path_valid(path, substeps=self.config.exact_substeps))
         exact_s = time.perf_counter() - t1
+        timed: dict[str, object] = {}
+        if path is not None and exact_valid:   # the motion's duration, outside the run's time
+            t = timed_trajectory(world, path)
+            timed = {"duration_s": t.trajectory.duration, "timing_method": t.method}
         seed_path, seed_found = _seed_of(r)
         seed_time = float(r.timing_s["seed"]) if "seed" in r.timing_s else float("nan")
         trajopt_status = r.info.get("trajopt_status")
@@ -147,7 +152,7 @@ class BenchWorker:
             seed_time_s=seed_time, seed_found=seed_found,
             trajopt_status=str(trajopt_status) if trajopt_status is not None else None,
             fallback_to_seed=bool(fallback) if fallback is not None else None,
-            info={**_scalars(r.info), **(extra_info or {})}, worker=self.name)
+            info={**_scalars(r.info), **timed, **(extra_info or {})}, worker=self.name)
 
 
 def load_roadmap_for(world: World, config: BenchConfig) -> Roadmap:
