@@ -28,13 +28,11 @@ compiled or vectorised: A* is numba on a CSR adjacency with validity masks, neig
 
 from __future__ import annotations
 
-import heapq
 import math
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
@@ -42,6 +40,7 @@ from scipy.spatial import cKDTree
 from chekhov.planners.base import PlannerBase, PlanResult, solve_goal_ik
 from chekhov.planners.query import PlanQuery
 from chekhov.planners.status import PlanStatus
+from chekhov.roadmap.search import astar_any
 from chekhov.world import World
 
 Array = NDArray[np.float64]
@@ -219,51 +218,6 @@ def _csr(n: int, edges: IntArray) -> tuple[IntArray, IntArray, IntArray]:
     return indptr, dst[order].astype(np.int64), eid[order]
 
 
-@numba.njit(cache=True)
-def _astar(indptr: IntArray, nbr: IntArray, eid: IntArray, w: Array, h: Array,
-           node_ok: BoolArray, edge_ok: BoolArray, start: int, is_goal: BoolArray
-           ) -> IntArray:  # pragma: no cover - compiled
-    """Shortest path start → any goal over usable nodes and edges; empty when none."""
-    n = len(indptr) - 1
-    g = np.full(n, np.inf)
-    pred = np.full(n, -1, dtype=np.int64)
-    closed = np.zeros(n, dtype=np.bool_)
-    g[start] = 0.0
-    heap = [(h[start], start)]
-    found = -1
-    while len(heap) > 0:
-        _, u = heapq.heappop(heap)
-        if closed[u]:
-            continue
-        closed[u] = True
-        if is_goal[u]:
-            found = u
-            break
-        for p in range(indptr[u], indptr[u + 1]):
-            v = nbr[p]
-            e = eid[p]
-            if closed[v] or not node_ok[v] or not edge_ok[e]:
-                continue
-            gv = g[u] + w[e]
-            if gv < g[v]:
-                g[v] = gv
-                pred[v] = u
-                heapq.heappush(heap, (gv + h[v], v))
-    if found < 0:
-        return np.zeros(0, dtype=np.int64)
-    m = 1
-    v = found
-    while v != start:
-        v = pred[v]
-        m += 1
-    out = np.empty(m, dtype=np.int64)
-    v = found
-    for i in range(m - 1, -1, -1):
-        out[i] = v
-        v = pred[v]
-    return out
-
-
 def lazy_shortest_path(X: Array, edges: IntArray, start: int, goals: IntArray,
                        node_valid: NodeValid, edge_valid: EdgeValid, resolution: float,
                        node_state: NDArray[np.int8] | None = None,
@@ -296,15 +250,15 @@ def lazy_shortest_path(X: Array, edges: IntArray, start: int, goals: IntArray,
     for key in ("search", "check"):
         timing.setdefault(key, 0.0)
     indptr, nbr, eid = _csr(n, edges)
-    w = np.linalg.norm(X[edges[:, 1]] - X[edges[:, 0]], axis=1)
+    w_entry = np.linalg.norm(X[edges[:, 1]] - X[edges[:, 0]], axis=1)[eid]   # per CSR entry
     goals = np.asarray(goals, dtype=np.int64)
     is_goal = np.zeros(n, dtype=np.bool_)
     is_goal[goals] = True
     h = np.min(np.linalg.norm(X[:, None, :] - X[goals][None, :, :], axis=2), axis=1)
     while time.perf_counter() < deadline:
         t = time.perf_counter()
-        path = _astar(indptr, nbr, eid, w, h, node_state != INVALID, edge_state != INVALID,
-                      int(start), is_goal)
+        path, _ = astar_any(indptr, nbr, w_entry, eid, int(start), is_goal, h,
+                            node_state != INVALID, edge_state != INVALID)
         stats["searches"] += 1
         timing["search"] += time.perf_counter() - t
         if len(path) == 0:

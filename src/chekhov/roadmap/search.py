@@ -41,25 +41,29 @@ def recover_path(pred_row, src, dst):  # pragma: no cover - compiled
     return out
 
 
-@njit(cache=True)
-def astar(indptr, indices, weights, edge_id, src, dst, heuristic, node_ok,
-          edge_ok):  # pragma: no cover - compiled
-    """Shortest path src → dst avoiding nodes with ``node_ok`` False and edges with ``edge_ok``
-    False. ``heuristic`` (N,) must be admissible (e.g. the all-pairs distance to dst on the
-    full graph). Returns (nodes, cost); nodes is empty when dst is unreachable."""
+@njit(cache=True, inline="always")
+def astar_any(indptr, indices, weights, edge_id, src, is_goal, heuristic, node_ok,
+              edge_ok, dst=-1):  # pragma: no cover - compiled
+    """Shortest path src → the nearest node with ``is_goal`` True (or, with dst ≥ 0, to dst:
+    ``is_goal`` is then not read), avoiding nodes with ``node_ok`` False and edges with
+    ``edge_ok`` False (by ``edge_id``). ``weights`` are per CSR entry; ``heuristic`` (N,) must
+    be admissible for the goal set. Returns (nodes, cost); nodes is empty when no goal is
+    reachable."""
     N = indptr.shape[0] - 1
     g = np.full(N, np.inf)
     parent = np.full(N, -1, dtype=np.int64)
     closed = np.zeros(N, dtype=np.bool_)
-    if not node_ok[src] or not node_ok[dst]:
+    if not node_ok[src] or (dst >= 0 and not node_ok[dst]):
         return np.empty(0, dtype=np.int64), np.inf
     g[src] = 0.0
     heap = [(heuristic[src], src)]
+    found = -1
     while len(heap) > 0:
         _, u = heapq.heappop(heap)
         if closed[u]:
             continue
-        if u == dst:
+        if u == dst if dst >= 0 else is_goal[u]:
+            found = u
             break
         closed[u] = True
         for a in range(indptr[u], indptr[u + 1]):
@@ -71,19 +75,28 @@ def astar(indptr, indices, weights, edge_id, src, dst, heuristic, node_ok,
                 g[v] = nd
                 parent[v] = u
                 heapq.heappush(heap, (nd + heuristic[v], v))
-    if not np.isfinite(g[dst]):
+    if found < 0:
         return np.empty(0, dtype=np.int64), np.inf
     n = 1
-    v = dst
+    v = found
     while v != src:
         v = parent[v]
         n += 1
     out = np.empty(n, dtype=np.int64)
-    v = dst
+    v = found
     for i in range(n - 1, -1, -1):
         out[i] = v
         v = parent[v]
-    return out, g[dst]
+    return out, g[found]
+
+
+@njit(cache=True)
+def astar(indptr, indices, weights, edge_id, src, dst, heuristic, node_ok,
+          edge_ok):  # pragma: no cover - compiled
+    """:func:`astar_any` to the single node dst (not reachable when ``node_ok[dst]`` is
+    False)."""
+    return astar_any(indptr, indices, weights, edge_id, src, node_ok, heuristic, node_ok,
+                     edge_ok, dst)
 
 
 def edge_lookup(indptr: IntArray, indices: IntArray, edge_id: IntArray, u: int, v: int) -> int:
