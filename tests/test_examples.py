@@ -22,3 +22,8 @@ def test_timed_trajectory_example_writes_its_plot(tmp_path):
     png = tmp_path / "t.png"
     stdout = _run("04_timed_trajectory.py", png)
     assert stdout.startswith("solved: ") and png.stat().st_size > 10_000
+
+
+def test_dynamic_obstacle_example_replans_around_the_forearm():
+    stdout = _run("02_dynamic_obstacle.py")
+    assert stdout.startswith("before: solved") and "blocks it: True; after: solved" in stdout

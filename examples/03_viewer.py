@@ -2,7 +2,7 @@
 
 Run it, open the printed address (http://127.0.0.1:8080 by default) in a browser:
 
-    python examples/02_view_scene.py [SCENE] [--port 8080] [--sweep]
+    python examples/03_viewer.py [SCENE] [--port 8080] [--sweep]
 
 What you see: the scene's objects coloured by semantic class (the draggable dynamic obstacle,
 a person's forearm, in orange-red), Baxter with its URDF meshes, the roadmap's nodes as
