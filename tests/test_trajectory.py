@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from chekhov import JointTrajectory, TimingConfig, TrajectoryError, time_parameterize
+from chekhov import Goal, JointTrajectory, TimingConfig, TrajectoryError, time_parameterize
 from chekhov.planners.registry import make_planner
 from chekhov.roadmap.build import build_roadmap
 from chekhov.roadmap.config import RoadmapConfig
@@ -136,3 +136,29 @@ def test_a_planners_timed_answer_is_exactly_free_when_sampled_densely(world_of, 
         assert np.all(np.abs(V) <= limits.velocity * (1 + TOL))
         assert np.all(np.abs(A) <= limits.acceleration * (1 + TOL))
         assert r.info["timing_method"] in ("toppra", "ruckig")
+
+
+def test_a_failed_parameterisation_never_loses_the_answer(world_of, monkeypatch):
+    """toppra failing falls back to ruckig; both failing keeps the certified path as the
+    answer, without a trajectory and saying why."""
+    import chekhov.timing as timing
+    from chekhov.planners.timed import timed_trajectory
+
+    world = world_of("tabletop_pole")
+    Q = world.robot.sample_uniform(np.random.default_rng(8), 200)
+    q0, q1 = Q[world.fast.valid(Q)][:2]
+    path = np.linspace(q0, q0 + 0.05 * (q1 - q0), 4)     # short: free in practice
+    assert world.exact.path_valid(path, substeps=100)
+
+    def broken(*args, **kwargs):
+        raise TrajectoryError("toppra failed: test")
+
+    monkeypatch.setattr(timing, "_toppra", broken)
+    assert timed_trajectory(world, path).method == "ruckig"
+    monkeypatch.setattr(timing, "_ruckig_segments", broken)
+    with pytest.raises(TrajectoryError):
+        timed_trajectory(world, path)
+    planner = make_planner("TrajOpt", world)
+    planner.timing = TimingConfig()
+    r = planner.plan(q0, Goal.configuration(path[-1]), 2.0)
+    assert r.success and r.trajectory is None and "toppra failed" in r.info["timing_error"]

@@ -181,7 +181,10 @@ def _toppra(P: Array, names: tuple[str, ...], limits: Limits, config: TimingConf
             np.column_stack([-limits.acceleration, limits.acceleration]))]
     algo = toppra.algorithm.TOPPRA(constraints, spline, parametrizer="ParametrizeConstAccel",
                                    gridpt_min_nb_points=max(config.gridpoints, 2 * len(P)))
-    timed = algo.compute_trajectory()
+    try:
+        timed = algo.compute_trajectory()
+    except Exception as e:   # toppra's numerics (a failed LP, a degenerate spline)
+        raise TrajectoryError(f"toppra failed: {type(e).__name__}: {e}") from e
     if timed is None:
         raise TrajectoryError("toppra found no parameterisation within the limits")
     ts = _knot_times(float(timed.duration), config.knot_dt_s)

@@ -16,7 +16,7 @@ from chekhov.bench.config import BenchConfig
 from chekhov.bench.record import RunRecord
 from chekhov.bench.registry import PlannerSpec, seed_planner_name
 from chekhov.bench.task import RunTask
-from chekhov.errors import ChekhovError
+from chekhov.errors import ChekhovError, TrajectoryError
 from chekhov.planners.base import Planner, PlanResult, path_length
 from chekhov.planners.status import PlanStatus, Stage
 from chekhov.planners.timed import timed_trajectory
@@ -136,8 +136,11 @@ class BenchWorker:
         exact_s = time.perf_counter() - t1
         timed: dict[str, object] = {}
         if path is not None and exact_valid:   # the motion's duration, outside the run's time
-            t = timed_trajectory(world, path)
-            timed = {"duration_s": t.trajectory.duration, "timing_method": t.method}
+            try:
+                t = timed_trajectory(world, path)
+                timed = {"duration_s": t.trajectory.duration, "timing_method": t.method}
+            except TrajectoryError as e:
+                timed = {"timing_error": str(e)}
         seed_path, seed_found = _seed_of(r)
         seed_time = float(r.timing_s["seed"]) if "seed" in r.timing_s else float("nan")
         trajopt_status = r.info.get("trajopt_status")

@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 if TYPE_CHECKING:
     from chekhov.world import World
 
-from chekhov.errors import IKError
+from chekhov.errors import IKError, TrajectoryError
 from chekhov.paths import path_length, resample_path
 from chekhov.planners.certify import certify
 from chekhov.planners.query import PlanQuery, make_query
@@ -75,13 +75,20 @@ class PlannerBase(ABC):
             result = self._plan(query)
         result = certify(self.world, query, result)
         if self.timing is not None and result.success and result.path is not None:
-            t = time.perf_counter()
-            timed = timed_trajectory(self.world, result.path, self.timing)
-            result = replace(result, trajectory=timed.trajectory,
-                             timing_s={**result.timing_s,
-                                       "time_parameterize": time.perf_counter() - t},
-                             info={**result.info, "timing_method": timed.method})
+            result = self._timed(result, result.path, self.timing)
         return result
+
+    def _timed(self, result: PlanResult, path: Array, timing: TimingConfig) -> PlanResult:
+        """``result`` with its timed trajectory; without one, and ``info["timing_error"]``
+        saying why, when no parameterisation succeeded (the path stays the answer)."""
+        t = time.perf_counter()
+        try:
+            timed = timed_trajectory(self.world, path, timing)
+        except TrajectoryError as e:
+            return replace(result, info={**result.info, "timing_error": str(e)})
+        return replace(result, trajectory=timed.trajectory,
+                       timing_s={**result.timing_s, "time_parameterize": time.perf_counter() - t},
+                       info={**result.info, "timing_method": timed.method})
 
     def warmup(self, *, seed: int = 0, time_limit_s: float = 1.0) -> float:
         """Do once what a first query would (compile or load the numba kernels, fill caches):

@@ -10,6 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from chekhov.collision.path_check import exact_path_decision
+from chekhov.errors import TrajectoryError
 from chekhov.timing import Timed, TimingConfig, joint_limits, time_parameterize
 
 if TYPE_CHECKING:
@@ -27,11 +28,18 @@ def timed_trajectory(world: World, path: Array, config: TimingConfig | None = No
     and ``config``. A trajectory that leaves the path's polyline (toppra's spline) is kept only
     when its knots stay within the joint limits and are collision-free by the exact decision
     at steps of at most :data:`CHECK_STEP_RAD`; otherwise the polyline itself is timed with
-    ruckig (at rest at each waypoint), which needs no new check."""
+    ruckig (at rest at each waypoint), which needs no new check — as it is when toppra fails.
+    Raises :class:`TrajectoryError` only when ruckig fails too."""
     config = config if config is not None else TimingConfig()
     robot = world.robot
     limits = joint_limits(robot.velocity_limit, config)
-    timed = time_parameterize(path, robot.joint_names, limits, config)
+    ruckig = replace(config, method="ruckig")
+    try:
+        timed = time_parameterize(path, robot.joint_names, limits, config)
+    except TrajectoryError:
+        if config.method == "ruckig":
+            raise
+        return time_parameterize(path, robot.joint_names, limits, ruckig)
     if timed.max_deviation_rad <= 1e-9:
         return timed
     Q = timed.trajectory.positions
@@ -40,5 +48,4 @@ def timed_trajectory(world: World, path: Array, config: TimingConfig | None = No
     if robot.within_limits(Q).all() and \
             exact_path_decision(world.fast, world.exact, Q, substeps).valid:
         return timed
-    return time_parameterize(path, robot.joint_names, limits,
-                             replace(config, method="ruckig"))
+    return time_parameterize(path, robot.joint_names, limits, ruckig)
