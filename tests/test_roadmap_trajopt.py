@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from chekhov.bench.cases import generate_cases
+from chekhov.collision.exact import densify
 from chekhov.planners.base import path_length
 from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt, RoadmapTrajOptConfig
 from chekhov.planners.shortcut import shortcut_path
@@ -38,15 +39,26 @@ def paper_planner(world, roadmap):
     return RoadmapTrajOpt(world, roadmap, RoadmapTrajOptConfig(straight_line_first=False))
 
 
-def check_answer(world, path, q_start, goal, obstacle=None):
-    """An answer judged by other means than the planner's: the exact checker on every one of
-    400 substeps per segment (coal, configuration by configuration near the planner's own
-    100), the joint limits, the start, and the goal pose by forward kinematics."""
-    P = np.asarray(path)
-    assert np.all(world.robot.lower - 1e-9 <= P) and np.all(world.robot.upper + 1e-9 >= P)
-    np.testing.assert_allclose(P[0], q_start, atol=1e-9)
-    assert world.exact.first_collision(P, substeps=400) is None
-    T = world.robot.compute_ee_pose(P[-1])
+def check_answer(world, path, q_start, goal, brute=False):
+    """An answer judged by other means than the planner's (whose certificate is the sphere
+    checker screening 100 substeps per segment, coal on its alarms): coal alone on every one
+    of 400 substeps per segment (the exact checker's conservative advancement, which never
+    looks at the spheres; with ``brute``, also configuration by configuration), the joint
+    limits, the start, and the goal: a pose by forward kinematics within the Goal's position
+    and orientation tolerances, a configuration joint by joint (slack 1e-6 for round-off, as
+    certify's)."""
+    P = np.asarray(path, dtype=float)
+    robot = world.robot
+    assert P.ndim == 2 and P.shape[1] == robot.dof and len(P) >= 1 and np.all(np.isfinite(P))
+    assert np.all(robot.lower - 1e-9 <= P) and np.all(robot.upper + 1e-9 >= P)
+    np.testing.assert_allclose(P[0], q_start, rtol=0, atol=1e-9)
+    assert world.exact.path_valid(P, substeps=400)
+    if brute:
+        assert world.exact.first_collision_brute(densify(P, 400)) is None
+    if goal.q is not None:
+        assert np.abs(P[-1] - goal.q).max() <= goal.joint_tolerance + 1e-6
+        return
+    T = robot.compute_ee_pose(P[-1])
     assert np.linalg.norm(T[:3, 3] - goal.T_world_ee[:3, 3]) <= goal.position_tolerance + 1e-6
     R_err = T[:3, :3].T @ goal.T_world_ee[:3, :3]
     angle = np.arccos(np.clip((np.trace(R_err) - 1) / 2, -1.0, 1.0))
@@ -54,22 +66,28 @@ def check_answer(world, path, q_start, goal, obstacle=None):
 
 
 def test_shortcut_is_a_valid_subsequence_and_never_longer(world, planner):
+    """Roadmap seeds shortcut: the same ends, waypoints a subsequence of the seed's, never
+    longer, exactly free. At least 4 of 5 seeds found (measured: 5 of 5)."""
     cases = generate_cases(world, 5, seed=7)
     seeded = 0
     for i in range(5):
         s = planner.seeder.seed(cases.q_start[i], cases.goal(i))
         if not s.success:
-            continue
+            continue   # counted: at least 4 must be seeded
         seeded += 1
         short = shortcut_path(world.fast, s.path)
+        assert np.array_equal(short[0], s.path[0]) and np.array_equal(short[-1], s.path[-1])
         assert world.exact.path_valid(short, substeps=100)
         assert path_length(short) <= path_length(s.path) + 1e-9
         assert all(any(np.array_equal(q, p) for p in s.path) for q in short)
-    assert seeded >= 4
+    assert seeded >= 4, f"{seeded} of 5 seeded"
 
 
 @pytest.mark.parametrize("which", ["planner", "paper_planner"])
 def test_answers_are_exactly_free_and_shorter_than_the_roadmap_seed(world, which, request):
+    """At least 7 of 8 cases solved (measured: 8 of 8 in both modes), each answer checked by
+    other means (check_answer; the first one also configuration by configuration), and an
+    answer from the roadmap never longer than its roadmap seed."""
     planner = request.getfixturevalue(which)
     cases = generate_cases(world, 8, seed=11)
     solved = 0
@@ -77,63 +95,100 @@ def test_answers_are_exactly_free_and_shorter_than_the_roadmap_seed(world, which
         r = planner.plan(cases.q_start[i], cases.goal(i))
         if not r.success:
             assert r.path is None
-            continue
+            continue   # counted: at least 7 must be solved
+        check_answer(world, r.path, cases.q_start[i], cases.goal(i), brute=solved == 0)
         solved += 1
-        check_answer(world, r.path, cases.q_start[i], cases.goal(i))
         if r.info["seed_kind"] == "roadmap":  # a straight line may need bending out
             assert r.path_length <= path_length(r.info["roadmap_seed"]) + 1e-6
-        else:
-            assert which == "planner"
-    assert solved >= 7
+        else:   # the paper's planner tries a straight line only after the roadmap failed
+            assert which == "planner" or r.info["fallback"], r.info
+    assert solved >= 7, f"{solved} of 8 solved"
 
 
-def test_a_dynamic_obstacle_changes_the_answer_and_is_avoided(world, planner):
-    """A box put where the answer's middle passes: the planner still answers (start and goal
-    stay free), with another path that is exactly free of the box."""
-    cases = generate_cases(world, 10, seed=5)
-    tried = moved = 0
-    for i in range(10):
-        before = planner.plan(cases.q_start[i], cases.goal(i))
+N_DYNAMIC = 10
+MIN_DYNAMIC_TRIED = 8
+"""Measured: in all 10 cases the box leaves the start and the goal configuration free and
+blocks the old path, and the planner answers around it, in both modes."""
+
+
+@pytest.mark.parametrize("which", ["planner", "paper_planner"])
+def test_a_dynamic_obstacle_changes_the_answer_and_is_avoided(world, which, request):
+    """A box put where the answer's middle passes, off the start and the goal configuration
+    (checked exactly, so that the question has an answer to find): the planner must still
+    answer, with another path that is exactly free of the box (the first two checked
+    configuration by configuration too); without the box the old path is free again."""
+    planner = request.getfixturevalue(which)
+    cases = generate_cases(world, N_DYNAMIC, seed=5)
+    tried = 0
+    for i in range(N_DYNAMIC):
+        q_start, goal = cases.q_start[i], cases.goal(i)
+        before = planner.plan(q_start, goal)
         assert before.success, (i, before.status)
+        check_answer(world, before.path, q_start, goal)
         mid = before.path[len(before.path) // 2]
         T_box = np.eye(4)
         T_box[:3, 3] = world.robot.compute_ee_pose(mid)[:3, 3]
         world.add_obstacle("person_arm", Shape("box", (0.08, 0.08, 0.08)), T_box)
         try:
-            if not (world.exact.is_valid(cases.q_start[i])
-                    and world.exact.is_valid(before.path[-1])):
-                continue   # the box took an end: not this test's question
+            if not (world.exact.is_valid(q_start) and world.exact.is_valid(before.path[-1])):
+                continue   # the box took an end: not this test's question (counted below)
             tried += 1
             assert not world.exact.path_valid(before.path, substeps=100)  # the box blocks it
-            after = planner.plan(cases.q_start[i], cases.goal(i))
-            assert after.success, (i, after.status)
+            after = planner.plan(q_start, goal)
+            assert after.success, (i, after.status, after.info.get("certificate"))
             assert not np.array_equal(after.path, before.path)
-            check_answer(world, after.path, cases.q_start[i], cases.goal(i))
-            moved += 1
+            check_answer(world, after.path, q_start, goal, brute=tried <= 2)
         finally:
             world.remove_obstacle("person_arm")
-        if moved == 3:
-            break
-    assert moved == 3, (tried, moved)
+        assert world.exact.path_valid(before.path, substeps=100)
+    assert tried >= MIN_DYNAMIC_TRIED, f"the box took an end in {N_DYNAMIC - tried} cases"
 
 
+MODES = {"straight_line_first": RoadmapTrajOptConfig(),
+         "paper": RoadmapTrajOptConfig(straight_line_first=False)}
+N_SCENE_CASES = 20
+MIN_SCENE_SOLVED = 18
+"""Measured with these roadmaps (SMALL), seeds and limits: 20 of 20 in every scene in both
+modes, and 60 of 60 (59 in shelf_boxes: one case the small roadmap cannot connect) over the
+first 60 cases; each query took at most 0.8 s of its 5 s. Two failures are allowed for a
+machine so loaded that TrajOpt's 40 ms straight-line try and the roadmap route both run out
+of time."""
+
+
+@pytest.fixture(scope="module")
+def small_roadmaps():
+    """SMALL roadmaps by scene name, built once for the module (1-2 s each)."""
+    return {}
+
+
+@pytest.mark.parametrize("mode", sorted(MODES))
 @pytest.mark.parametrize("scene", builtin_scenes())
-def test_every_scene_is_solved_with_checked_answers(scene):
-    """Roadmap + TrajOpt in every built-in scene (both robots): at least 9 of 10 generated
-    cases solved within 2 s each, every answer checked by other means (check_answer)."""
-    world = World.load(scene)
-    roadmap = build_roadmap(world, SMALL)
-    planner = RoadmapTrajOpt(world, roadmap)
-    cases = generate_cases(world, 10, seed=sum(map(ord, scene)))
+def test_every_scene_is_solved_with_checked_answers(scene, mode, world_of, small_roadmaps):
+    """Roadmap + TrajOpt in every built-in scene (both robots), as configured by default and
+    as the paper's planner (every query from the roadmap): at least MIN_SCENE_SOLVED of
+    N_SCENE_CASES fixed, seeded cases solved within 5 s each, every answer checked by other
+    means (check_answer; the first one also configuration by configuration)."""
+    world = world_of(scene)   # shared, unchanged: this test adds no obstacle
+    assert not world.fast.dynamic_obstacles   # none left behind by another test
+    if scene not in small_roadmaps:
+        small_roadmaps[scene] = build_roadmap(world, SMALL)
+    planner = RoadmapTrajOpt(world, small_roadmaps[scene], MODES[mode])
+    cases = generate_cases(world, N_SCENE_CASES, seed=sum(map(ord, scene)))
     solved = 0
+    failures = []
     for i in range(len(cases)):
-        r = planner.plan(cases.q_start[i], cases.goal(i), 2.0)
+        assert world.exact.is_valid(cases.q_start[i]) and world.exact.is_valid(cases.q_goal[i])
+        r = planner.plan(cases.q_start[i], cases.goal(i), 5.0)
         if r.success:
+            check_answer(world, r.path, cases.q_start[i], cases.goal(i), brute=solved == 0)
             solved += 1
-            check_answer(world, r.path, cases.q_start[i], cases.goal(i))
+            if mode == "paper":   # from the roadmap, or the straight line after it failed
+                assert r.info["seed_kind"] == "roadmap" or r.info["fallback"], r.info
         else:
             assert r.path is None
-    assert solved >= 9, f"{scene}: {solved} of 10"
+            failures.append((i, str(r.status)))
+    assert solved >= MIN_SCENE_SOLVED, f"{scene} ({mode}): {solved} of {N_SCENE_CASES}, " \
+                                       f"failed: {failures}"
 
 
 def test_an_exhausted_time_limit_is_a_timeout_not_an_answer(world, paper_planner):

@@ -91,10 +91,11 @@ def test_cylinder_and_box_covers_contain_their_surface(rng):
 
 def _surface_points(geo, rng, n=600):
     """Points on a coal shape's surface (its own frame): cylinder rims, caps and side; box
-    corners, edges and faces; for a mesh every vertex and random points on every triangle."""
+    corners, edges and faces; sphere and capsule surfaces; for a mesh every vertex and 4
+    random (barycentric) points on every triangle."""
     import coal
 
-    from chekhov.robot.spheres import mesh_triangles
+    from chekhov.robot.spheres import mesh_arrays, mesh_triangles
 
     if isinstance(geo, coal.Cylinder):
         a = rng.uniform(0, 2 * np.pi, n)
@@ -110,9 +111,18 @@ def _surface_points(geo, rng, n=600):
     if isinstance(geo, coal.Sphere):
         v = rng.normal(size=(n, 3))
         return geo.radius * v / np.linalg.norm(v, axis=1, keepdims=True)
+    if isinstance(geo, coal.Capsule):
+        v = rng.normal(size=(n, 3))
+        v /= np.linalg.norm(v, axis=1, keepdims=True)
+        a = rng.uniform(0, 2 * np.pi, n)
+        side = np.column_stack([geo.radius * np.cos(a), geo.radius * np.sin(a),
+                                rng.uniform(-geo.halfLength, geo.halfLength, n)])
+        ends = geo.radius * v + np.where(v[:, 2:] > 0, 1, -1) * [0, 0, geo.halfLength]
+        return np.vstack([side, ends])
+    verts, _ = mesh_arrays(geo)                             # every vertex, (V, 3)
     tris = mesh_triangles(geo)                              # (F, 3, 3)
     w = rng.dirichlet(np.ones(3), size=(len(tris), 4))      # 4 points on every triangle
-    return np.vstack([tris.reshape(-1, 3), np.einsum("fkc,fcx->fkx", w, tris).reshape(-1, 3)])
+    return np.vstack([verts, np.einsum("fkc,fcx->fkx", w, tris).reshape(-1, 3)])
 
 
 @pytest.mark.parametrize("name", ["baxter_left", "panda"])
@@ -122,9 +132,15 @@ def test_sphere_model_covers_robot_geometry(name, rng):
     fast checker is conservative only because of this (a sphere miss is a certain miss)."""
     robot = Robot.load(name)
     sm = build_sphere_model(robot)
+    # the spheres stand for exactly the moving geometries (the fixed ones, Baxter's locked
+    # right arm and torso, are in the fast checker's distance grids instead)
+    moving = set(robot.moving_geometries)
+    assert set(sm.geometries.tolist()) == moving
+    geoms = robot.collision_model.geometryObjects
+    assert np.array_equal(sm.joints, [geoms[int(gi)].parentJoint - 1 for gi in sm.geometries])
     kinds = set()
     for gi in robot.moving_geometries:
-        g = robot.collision_model.geometryObjects[gi]
+        g = geoms[gi]
         kinds.add(type(g.geometry).__name__)
         pts = _surface_points(g.geometry, rng) @ g.placement.rotation.T + g.placement.translation
         mine = sm.geometries == gi
@@ -132,6 +148,26 @@ def test_sphere_model_covers_robot_geometry(name, rng):
         outside = d.min(axis=1)
         assert outside.max() <= 1e-9, (g.name, float(outside.max()))
     assert kinds >= ({"BVHModelOBBRSS"} if name == "panda" else {"Cylinder", "Box"}), kinds
+
+
+@pytest.mark.parametrize("name", ["baxter_left", "panda"])
+def test_every_collision_shape_is_covered_by_its_spheres(name, rng):
+    """cover_geometry on every collision geometry of the robot, fixed ones included (Baxter's
+    meshes and spheres are all fixed), and on a capsule, which neither robot has: every
+    surface point (every mesh vertex, points on every triangle) lies in a sphere."""
+    import coal
+
+    from chekhov.robot.spheres import cover_geometry
+
+    robot = Robot.load(name)
+    shapes = [(g.name, g.geometry) for g in robot.collision_model.geometryObjects]
+    shapes += [("capsule", coal.Capsule(0.05, 0.3)), ("short capsule", coal.Capsule(0.05, 0.01))]
+    for label, geo in shapes:
+        for max_excess, mesh_spheres in ((0.15, 10), (0.01, 3)):
+            c, r = cover_geometry(geo, max_excess, mesh_spheres)
+            pts = _surface_points(geo, rng)
+            outside = (np.linalg.norm(pts[:, None, :] - c[None], axis=2) - r).min(axis=1)
+            assert outside.max() <= 1e-9, (label, max_excess, float(outside.max()))
 
 
 def test_ik_reaches_pose_and_gives_distinct_solutions(robot, rng):

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from chekhov.collision.distance_terms import TrajectoryDistances
+from chekhov.collision.exact import densify
 from chekhov.planners.base import path_length
 from chekhov.robot.goal import Goal
 from chekhov.trajopt.config import TrajOptConfig
@@ -123,35 +124,63 @@ def test_qp_step_decreases_cost_on_an_unconstrained_problem(pole, rng):
                                   rel=1e-3)
 
 
-def test_straight_line_through_the_pole_is_pushed_out(pole):
-    """Pairs of free configurations whose straight line collides (by the exact checker): TrajOpt
-    pushes most of them out — each success collision-free by the exact checker at 100
-    substeps, from the start to the goal — and a failure is never a colliding success."""
+def _pole_crossing_lines(pole, n):
+    """The first ``n`` pairs of free configurations (fixed seed, so always the same pairs)
+    whose straight line (30 waypoints) first touches the pole, by the exact checker: coal's
+    first colliding configuration at 10 substeps, and coal naming the pole among the pairs
+    in contact there."""
     Q = _free(pole, np.random.default_rng(7), 600)
     lines = []
     for i in range(0, len(Q) - 1, 2):
         seed = straight_line_seed(Q[i], Q[i + 1], 30)
-        if not pole.exact.path_valid(seed, 10):
+        k = pole.exact.first_collision(seed, 10)
+        if k is None:
+            continue
+        D = densify(seed, 10)
+        if any("obstacle:pole" in pair for pair in pole.exact.colliding_pairs(D[k])):
             lines.append((Q[i], Q[i + 1], seed))
-        if len(lines) == 6:
+        if len(lines) == n:
             break
-    assert len(lines) == 6, f"only {len(lines)} colliding straight lines among 300 pairs"
+    return lines
+
+
+N_POLE_LINES = 12
+MIN_POLE_LINES_SOLVED = 7
+"""Measured: 9 of the 12 lines pushed out (14 of the first 20), every run the same (TrajOpt
+is deterministic here and far from its 10 s limit); 2 below that for other platforms'
+floating point."""
+
+
+def test_straight_line_through_the_pole_is_pushed_out(pole):
+    """Straight lines that run into the pole (found deterministically, never skipped): TrajOpt
+    pushes most of them out — each success free by coal at 400 substeps per segment (4x
+    TrajOpt's own validation), within the joint limits, from the start to the goal — and a
+    failure is never a colliding success, and still lowers the collision penalty."""
+    lines = _pole_crossing_lines(pole, N_POLE_LINES)
+    assert len(lines) == N_POLE_LINES, \
+        f"only {len(lines)} straight lines into the pole among 300 pairs"
     solved = 0
     for q0, q1, seed in lines:
         prob = build_trajopt(pole, q0, Goal.configuration(q1), seed)
         r = solve_trajopt(prob)
-        before = prob.constraint_report(prob.evaluate(seed))["collision_m"]
+        # TrajOpt's l1 collision penalty (the sum of every distance term's shortfall); the
+        # largest shortfall (violations["collision_m"]) may grow while the sum falls
+        before = prob.violations(prob.evaluate(prob.seed))["collision"].sum()
         assert before > 0
         if r.success:
             solved += 1
-            assert r.valid and pole.exact.path_valid(r.trajectory, substeps=100)
-            assert np.allclose(r.trajectory[0], q0) and np.allclose(r.trajectory[-1], q1)
-            assert np.all(r.trajectory >= pole.robot.lower - 1e-9)
-            assert np.all(r.trajectory <= pole.robot.upper + 1e-9)
+            P = r.trajectory
+            assert r.valid and pole.exact.path_valid(P, substeps=400)
+            np.testing.assert_allclose(P[0], q0, atol=1e-9)
+            np.testing.assert_allclose(P[-1], q1, atol=1e-6)   # Goal.configuration's 1e-6
+            assert np.all(pole.robot.lower - 1e-9 <= P)
+            assert np.all(pole.robot.upper + 1e-9 >= P)
         else:
             assert r.status in ("infeasible", "collision", "timeout")
-            assert r.violations["collision_m"] < before + 1e-9   # the penalty went down
-    assert solved >= 4, f"{solved} of 6 colliding straight lines pushed out"
+            after = prob.violations(prob.evaluate(r.trajectory))["collision"].sum()
+            assert after < before   # the penalty went down
+    assert solved >= MIN_POLE_LINES_SOLVED, \
+        f"{solved} of {N_POLE_LINES} straight lines into the pole pushed out"
 
 
 def test_pose_goal_is_reached_within_tolerance(pole, rng):
@@ -159,8 +188,13 @@ def test_pose_goal_is_reached_within_tolerance(pole, rng):
     goal = Goal.pose(pole.robot.compute_ee_pose(q1))
     r = solve_trajopt(build_trajopt(pole, q0, goal))
     assert r.success, r.status
+    assert goal.T_world_ee is not None
     T = pole.robot.compute_ee_pose(r.trajectory[-1])
     assert np.linalg.norm(T[:3, 3] - goal.T_world_ee[:3, 3]) <= goal.position_tolerance + 1e-6
+    cos = (np.trace(T[:3, :3].T @ goal.T_world_ee[:3, :3]) - 1) / 2
+    assert np.arccos(np.clip(cos, -1, 1)) <= goal.orientation_tolerance + 1e-6
+    np.testing.assert_allclose(r.trajectory[0], q0, rtol=0, atol=1e-9)
+    assert pole.exact.path_valid(r.trajectory, substeps=400)
     assert path_length(r.trajectory) > 0
 
 
@@ -207,6 +241,8 @@ def test_sphere_clearance_shortfall_is_accepted_only_when_the_exact_check_passes
         seed = straight_line_seed(q0, q1, 12)
         if pole.exact.path_valid(seed, substeps=20):
             break
+    else:
+        pytest.fail("no free straight line among 50 pairs of free configurations")
     cfg = TrajOptConfig(safety_margin_m=0.35, check_distance_m=0.4, min_clearance_m=0.3,
                         max_iterations=8, max_penalty_increases=1)
     strict = solve_trajopt(build_trajopt(pole, q0, Goal.configuration(q1), seed,
