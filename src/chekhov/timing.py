@@ -1,20 +1,31 @@
 """Time parameterisation of a geometric path (waypoints (T, K), rad) into a
-:class:`~chekhov.trajectory.JointTrajectory`, under per-joint velocity, acceleration and (for
-ruckig) jerk limits, with two field libraries:
+:class:`~chekhov.trajectory.JointTrajectory`, under per-joint velocity (rad/s, the URDF's),
+acceleration (rad/s²) and, for ruckig, jerk (rad/s³) limits, with two field libraries:
 
-* ``"toppra"`` (default): TOPP-RA (Pham & Pham 2018), the time-optimal parameterisation
-  along a C² cubic spline through the waypoints, velocity and acceleration limits. Fast
-  motion through the waypoints without stopping; the spline leaves the straight segments a
-  little where the path turns (the result says by how much: ``max_deviation_rad``).
+* ``"toppra"`` (default): TOPP-RA (Pham & Pham 2018), the time-optimal parameterisation under
+  velocity and acceleration limits along the waypoints' polyline with each corner rounded by a
+  circular arc (Kunz & Stilman 2012, the blends MoveIt's time-optimal parameterisation uses):
+  :class:`BlendedPolyline`. Every configuration of the arc is within
+  ``TimingConfig.blend_deviation_rad`` (joint-space L2, rad) of the corner waypoint it rounds,
+  so **the trajectory stays within that distance of the certified polyline** (and on it along
+  the straight parts); the motion does not stop at corners. A corner turned too sharply for an
+  arc of radius :data:`MIN_BLEND_RADIUS_RAD` (a reversal, a very short segment) is not rounded:
+  the motion comes to rest there. ``blend_deviation_rad=0`` rests at every corner, exactly on
+  the polyline.
 * ``"ruckig"``: jerk-limited (Ruckig, Berscheid & Kröger 2021, as MoveIt uses it), straight
   segment by straight segment, at rest at every waypoint: slower, but exactly on the
-  waypoints' polyline — the path that was certified.
+  waypoints' polyline. (Ruckig's intermediate waypoints need its cloud API or Pro version.)
 
-A planner's certified answer is a polyline; the planners layer
-(:func:`chekhov.planners.timed.timed_trajectory`) keeps toppra's trajectory only when it is
-collision-free by the exact check of its own knots, and otherwise times the certified
-polyline with ruckig. Velocity and acceleration limits hold at the knots, which are
-``knot_dt_s`` apart; between knots the quintic Hermite interpolation follows the profile.
+Why not a spline through the waypoints: it leaves the straight segments that the collision
+checker certified by up to ~1 rad on planners' paths (measured on tabletop_pole), so its
+trajectory had to be re-checked and was often in collision. A blend leaves the polyline by at
+most ``blend_deviation_rad``; the planners layer (:func:`chekhov.planners.timed.timed_trajectory`)
+still re-checks any trajectory that leaves the polyline and falls back to ruckig.
+
+Limits hold everywhere on the returned trajectory's interpolant, not only at its knots: knots
+are at most ``knot_dt_s`` apart (and at every toppra grid point, so the straight parts are
+reproduced exactly by the cubic Hermite interpolation), and :func:`within_limits` slows the
+whole trajectory uniformly by the (small) factor the interpolant may exceed them by.
 """
 
 from __future__ import annotations
@@ -32,6 +43,16 @@ from chekhov.trajectory import JointTrajectory, hermite_accelerations
 
 Array = NDArray[np.float64]
 METHODS = ("toppra", "ruckig")
+MIN_BLEND_RADIUS_RAD = 1e-3
+"""rad: a corner whose arc would be tighter than this is not rounded; the motion rests there."""
+STRAIGHT_RAD = 1e-6
+"""rad: a corner turning by less than this is left as it is (no arc, no stop)."""
+GRID_STEP_RAD = 0.1
+"""rad of path length: the largest step of toppra's grid."""
+ARC_STEP_RAD = 0.1
+GRADED_FROM_RAD = 0.002
+"""rad of path length: the first graded grid step from a line's end."""
+"""rad of turn: the largest step of toppra's grid on an arc."""
 
 
 @dataclass(frozen=True)
@@ -41,18 +62,22 @@ class TimingConfig:
     Attributes:
         method: "toppra" or "ruckig" (module docstring).
         velocity_scale: share of the robot's velocity limits (URDF) to use, in (0, 1].
-        acceleration_limit: rad/s², every joint (the URDF has none).
-        jerk_limit: rad/s³, every joint (ruckig only).
-        knot_dt_s: s between the stored knots.
+        acceleration_limit: rad/s², one for every joint or a tuple of one per joint (the URDF
+            has none).
+        jerk_limit: rad/s³, one for every joint or one per joint (ruckig only).
+        knot_dt_s: s, the largest time between the stored knots.
         gridpoints: toppra's discretisation of the path (at least this many points).
+        blend_deviation_rad: toppra: the largest joint-space distance (L2, rad) of a rounded
+            corner from its waypoint; 0 rests at every corner.
     """
 
     method: str = "toppra"
     velocity_scale: float = 1.0
-    acceleration_limit: float = 3.0
-    jerk_limit: float = 30.0
+    acceleration_limit: float | tuple[float, ...] = 3.0
+    jerk_limit: float | tuple[float, ...] = 30.0
     knot_dt_s: float = 0.005
     gridpoints: int = 100
+    blend_deviation_rad: float = 0.02
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -60,12 +85,25 @@ class TimingConfig:
                                   f"{list(METHODS)}")
         for name in ("acceleration_limit", "jerk_limit", "knot_dt_s"):
             v = getattr(self, name)
-            if not (isinstance(v, int | float) and np.isfinite(v) and v > 0):
-                raise TrajectoryError(f"TimingConfig.{name}: must be a positive number, "
+            if isinstance(v, list | np.ndarray):
+                v = tuple(float(x) for x in v)
+                object.__setattr__(self, name, v)
+            ok = isinstance(v, int | float) or (isinstance(v, tuple) and len(v) > 0 and name
+                                                 != "knot_dt_s")
+            if not (ok and np.all(np.isfinite(v)) and np.all(np.asarray(v) > 0)):
+                raise TrajectoryError(f"TimingConfig.{name}: must be a positive number"
+                                      f"{'' if name == 'knot_dt_s' else ' or one per joint'}, "
                                       f"got {v!r}")
         if not (0 < self.velocity_scale <= 1):
             raise TrajectoryError(f"TimingConfig.velocity_scale: must be in (0, 1], got "
                                   f"{self.velocity_scale!r}")
+        if not (isinstance(self.gridpoints, int) and self.gridpoints >= 2):
+            raise TrajectoryError(f"TimingConfig.gridpoints: must be an integer >= 2, got "
+                                  f"{self.gridpoints!r}")
+        d = self.blend_deviation_rad
+        if not (isinstance(d, int | float) and np.isfinite(d) and d >= 0):
+            raise TrajectoryError(f"TimingConfig.blend_deviation_rad: must be a number >= 0 "
+                                  f"(rad), got {d!r}")
 
 
 class Limits(NamedTuple):
@@ -90,19 +128,28 @@ def joint_limits(velocity_limit: Array, config: TimingConfig) -> Limits:
     v = np.asarray(velocity_limit, dtype=float) * config.velocity_scale
     if v.ndim != 1 or not np.all(np.isfinite(v) & (v > 0)):
         raise TrajectoryError(f"velocity limits must be positive and finite, got {v}")
-    return Limits(v, np.full_like(v, config.acceleration_limit),
-                  np.full_like(v, config.jerk_limit))
+    out = [v]
+    for name in ("acceleration_limit", "jerk_limit"):
+        x = np.asarray(getattr(config, name), dtype=float)
+        if x.ndim == 1 and x.shape != v.shape:
+            raise TrajectoryError(f"TimingConfig.{name}: {len(x)} values for {len(v)} joints")
+        out.append(np.broadcast_to(x, v.shape).copy())
+    return Limits(*out)
 
 
 def time_parameterize(path: Array, joint_names: tuple[str, ...], limits: Limits,
                       config: TimingConfig | None = None) -> Timed:
     """The path (T, K) rad timed by ``config.method`` (default config: toppra) under
-    ``limits``."""
+    ``limits``; starts and ends at rest. Raises :class:`TrajectoryError` for a malformed path
+    or when the library finds no motion."""
     config = config if config is not None else TimingConfig()
     P = _distinct(np.asarray(path, dtype=float))
     if P.ndim != 2 or P.shape[1] != len(joint_names) or not np.all(np.isfinite(P)):
         raise TrajectoryError(f"path: expected a finite (T, {len(joint_names)}) array, got "
                               f"shape {P.shape}")
+    if any(a.shape != (P.shape[1],) for a in limits):
+        raise TrajectoryError(f"limits: expected ({P.shape[1]},) each, got "
+                              f"{[a.shape for a in limits]}")
     if len(P) == 1:
         z = np.zeros_like(P)
         return Timed(JointTrajectory(joint_names, np.zeros(1), P, z, z), config.method, 0.0)
@@ -118,7 +165,7 @@ def within_limits(traj: JointTrajectory, limits: Limits) -> JointTrajectory:
     """``traj``, slowed down uniformly (times × c, velocities / c, accelerations / c²) if its
     interpolant anywhere exceeds the velocity or acceleration limits: the parameterisations
     respect them on their own grids, the interpolation between knots may overshoot slightly
-    (toppra: up to 25% in acceleration where its discretisation switches)."""
+    (on toppra's arcs, whose direction turns between grid points)."""
     ratio = limit_ratio(traj, limits)
     if ratio <= 1.0:
         return traj
@@ -150,11 +197,18 @@ def limit_ratio(traj: JointTrajectory, limits: Limits) -> float:
 
 def polyline_deviation(Q: Array, P: Array) -> float:
     """Largest distance (rad) from a configuration of Q (N, K) to the polyline P (T, K)."""
+    Q, P = np.atleast_2d(Q), np.atleast_2d(P)
+    if len(P) == 1:
+        return float(np.linalg.norm(Q - P[0], axis=1).max())
     a, d = P[:-1], np.diff(P, axis=0)                              # (S, K)
     dd = np.maximum(np.einsum("sk,sk->s", d, d), 1e-300)
-    t = np.clip(np.einsum("nsk,sk->ns", Q[:, None, :] - a[None], d) / dd, 0.0, 1.0)
-    gap = Q[:, None, :] - (a[None] + t[..., None] * d[None])       # (N, S, K)
-    return float(np.sqrt(np.einsum("nsk,nsk->ns", gap, gap).min(axis=1)).max())
+    best = np.full(len(Q), np.inf)
+    for i in range(0, len(Q), 512):                                # bounded memory
+        q = Q[i:i + 512]
+        t = np.clip(np.einsum("nsk,sk->ns", q[:, None, :] - a[None], d) / dd, 0.0, 1.0)
+        gap = q[:, None, :] - (a[None] + t[..., None] * d[None])   # (n, S, K)
+        best[i:i + 512] = np.sqrt(np.einsum("nsk,nsk->ns", gap, gap).min(axis=1))
+    return float(best.max())
 
 
 def _distinct(P: Array) -> Array:
@@ -165,38 +219,203 @@ def _distinct(P: Array) -> Array:
     return P[keep]
 
 
+# --- toppra along the blended polyline ------------------------------------------------------
+class Corners(NamedTuple):
+    """The interior waypoints of a polyline (T-2 of them): turn angle (rad), the length (rad)
+    the arc takes from each neighbouring segment, and its radius (rad); 0, 0 unrounded."""
+
+    angle: Array
+    cut: Array
+    radius: Array
+
+    @property
+    def stops(self) -> NDArray[np.bool_]:
+        """Corners turned but not rounded: the motion rests there."""
+        return (self.angle >= STRAIGHT_RAD) & (self.radius < MIN_BLEND_RADIUS_RAD)
+
+
+def corners(P: Array, deviation: float) -> Corners:
+    """The arcs rounding the corners of the polyline P (T, K) rad (Kunz & Stilman 2012): each
+    tangent to both segments, taking at most half of either, its points within ``deviation``
+    rad of the corner waypoint (cut = deviation / tan(angle / 4), radius = cut / tan(angle /
+    2))."""
+    d = np.diff(P, axis=0)
+    L = np.linalg.norm(d, axis=1)
+    y = d / L[:, None]
+    angle = np.arccos(np.clip(np.einsum("sk,sk->s", y[:-1], y[1:]), -1.0, 1.0))
+    turned = angle >= STRAIGHT_RAD
+    safe = np.where(turned, angle, 1.0)
+    cut = np.minimum(np.minimum(L[:-1], L[1:]) / 2, deviation / np.tan(safe / 4))
+    radius = cut / np.tan(safe / 2)
+    keep = turned & (radius >= MIN_BLEND_RADIUS_RAD)
+    return Corners(angle, np.where(keep, cut, 0.0), np.where(keep, radius, 0.0))
+
+
+class BlendedPolyline:
+    """The polyline P (T, K) rad with its corners rounded (:func:`corners`; none may be a
+    stop), as a toppra geometric path parameterised by arc length s in [0, length] rad.
+    An arc includes its end points: there the second derivative is the arc's."""
+
+    def __init__(self, P: Array, deviation: float) -> None:
+        c = corners(P, deviation)
+        if c.stops.any():
+            raise TrajectoryError("BlendedPolyline: a corner cannot be rounded (split there)")
+        d = np.diff(P, axis=0)
+        L = np.linalg.norm(d, axis=1)
+        y = d / L[:, None]
+        cut = np.concatenate([[0.0], c.cut, [0.0]])                 # (T,) at each waypoint
+        self.line_start = P[:-1] + cut[:-1, None] * y               # (S, K)
+        self.line_dir = y
+        line_len = L - cut[:-1] - cut[1:]
+        arc = c.radius > 0                                          # (T-2,)
+        arc_len = np.where(arc, c.radius * c.angle, 0.0)
+        piece = np.ravel(np.column_stack([line_len, np.append(arc_len, 0.0)]))[:-1]
+        s0 = np.concatenate([[0.0], np.cumsum(piece)])
+        self.line_s0, self.length = s0[0::2], float(s0[-1])
+        self.arc_s0, self.arc_len = s0[1:-1:2][arc], arc_len[arc]
+        self.arc_r, self.arc_angle = c.radius[arc], c.angle[arc]
+        y_in, y_out, q = y[:-1][arc], y[1:][arc], P[1:-1][arc]
+        bis = y_out - y_in
+        bis /= np.linalg.norm(bis, axis=1, keepdims=True)
+        centre = q + bis * (self.arc_r / np.cos(self.arc_angle / 2))[:, None]
+        start = q - c.cut[arc][:, None] * y_in
+        self.arc_centre, self.arc_y = centre, y_in
+        self.arc_x = (start - centre) / self.arc_r[:, None]
+        # the arc: centre + r (x cos θ + y sin θ), θ = (s - s0) / r in [0, angle]; x is the
+        # unit vector from the centre to the arc's start, y the incoming direction
+
+    @property
+    def dof(self) -> int:
+        return int(self.line_dir.shape[1])
+
+    @property
+    def path_interval(self) -> Array:
+        return np.array([0.0, self.length])
+
+    @property
+    def waypoints(self) -> None:
+        return None
+
+    def __call__(self, s: float | Array, order: int = 0) -> Array:
+        """Position (rad), or its first or second derivative along s, at s: (K,) or (N, K)."""
+        ss = np.clip(np.atleast_1d(np.asarray(s, dtype=float)), 0.0, self.length)
+        k = np.clip(np.searchsorted(self.line_s0, ss, side="right") - 1, 0, len(self.line_s0) - 1)
+        if order == 0:
+            out = self.line_start[k] + self.line_dir[k] * (ss - self.line_s0[k])[:, None]
+        else:
+            out = self.line_dir[k] if order == 1 else np.zeros((len(ss), self.dof))
+        if len(self.arc_s0):
+            j = np.clip(np.searchsorted(self.arc_s0, ss, side="right") - 1, 0, None)
+            on = (ss >= self.arc_s0[j]) & (ss <= self.arc_s0[j] + self.arc_len[j])
+            j, r = j[on], self.arc_r[j[on]][:, None]
+            th = (ss[on] - self.arc_s0[j])[:, None] / r
+            x, y = self.arc_x[j], self.arc_y[j]
+            if order == 0:
+                out[on] = self.arc_centre[j] + r * (x * np.cos(th) + y * np.sin(th))
+            elif order == 1:
+                out[on] = -x * np.sin(th) + y * np.cos(th)
+            else:
+                out[on] = -(x * np.cos(th) + y * np.sin(th)) / r
+        return out[0] if np.ndim(s) == 0 else out
+
+    def gridpoints(self, at_least: int) -> Array:
+        """toppra's grid (rad of path length): every line and arc end; steps of at most
+        :data:`GRID_STEP_RAD` (and :data:`ARC_STEP_RAD` of turn on an arc); on a line, points
+        also at :data:`GRADED_FROM_RAD` × 1, 2, 4 … from either end, where the motion is slow
+        and a coarse grid would cost the most time; at least ``at_least`` points."""
+        step = min(GRID_STEP_RAD, self.length / at_least)
+        arc_end = self.arc_s0 + self.arc_len
+        ends = np.unique(np.concatenate([self.line_s0, self.arc_s0, arc_end, [self.length]]))
+        parts = []
+        for a, b in itertools.pairwise(ends):
+            j = np.flatnonzero(np.abs(self.arc_s0 - a) <= 1e-12)
+            turns = int(np.ceil(self.arc_angle[j[0]] / ARC_STEP_RAD)) if len(j) else 1
+            parts.append(np.linspace(a, b, max(int(np.ceil((b - a) / step)), turns) + 1))
+            if not len(j):
+                k = np.arange(int(np.log2(max((b - a) / 2 / GRADED_FROM_RAD, 1.0))) + 1)
+                g = GRADED_FROM_RAD * 2.0 ** k
+                parts.append(np.concatenate([a + g, b - g]))
+        grid = np.unique(np.concatenate(parts))
+        return grid[np.concatenate([[True], np.diff(grid) > 1e-9])]
+
+
 def _toppra(P: Array, names: tuple[str, ...], limits: Limits, config: TimingConfig
             ) -> JointTrajectory:
-    import toppra
+    """Time-optimal along the blended polyline, at rest where a corner cannot be rounded."""
+    logging.getLogger("toppra").setLevel(logging.ERROR)   # its INFO lines on every call
+    stops = np.flatnonzero(corners(P, config.blend_deviation_rad).stops) + 1
+    bounds = [0, *stops.tolist(), len(P) - 1]
+    pieces = [_toppra_piece(BlendedPolyline(P[a:b + 1], config.blend_deviation_rad), limits,
+                            config) for a, b in itertools.pairwise(bounds)]
+    return _concatenate(names, pieces)
+
+
+def _toppra_piece(path: BlendedPolyline, limits: Limits, config: TimingConfig
+                  ) -> tuple[Array, Array, Array]:
+    """(times (N,) s, positions (N, K) rad, velocities (N, K) rad/s) of the time-optimal
+    rest-to-rest motion along ``path``."""
     import toppra.algorithm
     import toppra.constraint
 
-    logging.getLogger("toppra").setLevel(logging.ERROR)   # its INFO lines on every call
-    ss = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))])
-    spline = toppra.SplineInterpolator(ss, P)
+    grid = path.gridpoints(config.gridpoints)
     constraints = [
         toppra.constraint.JointVelocityConstraint(
             np.column_stack([-limits.velocity, limits.velocity])),
         toppra.constraint.JointAccelerationConstraint(
             np.column_stack([-limits.acceleration, limits.acceleration]))]
-    algo = toppra.algorithm.TOPPRA(constraints, spline, parametrizer="ParametrizeConstAccel",
-                                   gridpt_min_nb_points=max(config.gridpoints, 2 * len(P)))
     try:
-        timed = algo.compute_trajectory()
-    except Exception as e:   # toppra's numerics (a failed LP, a degenerate spline)
+        algo = toppra.algorithm.TOPPRA(constraints, path, gridpoints=grid)
+        _, sd, _ = algo.compute_parameterization(0.0, 0.0)
+    except Exception as e:   # toppra's numerics (a failed LP)
         raise TrajectoryError(f"toppra failed: {type(e).__name__}: {e}") from e
-    if timed is None:
+    if sd is None:
         raise TrajectoryError("toppra found no parameterisation within the limits")
-    ts = _knot_times(float(timed.duration), config.knot_dt_s)
-    return JointTrajectory.from_velocities(names, ts, timed(ts), timed(ts, 1))
+    return _stage_knots(path, grid, np.maximum(np.asarray(sd, dtype=float), 0.0),
+                        config.knot_dt_s)
 
 
+def _stage_knots(path: BlendedPolyline, grid: Array, sd: Array, dt: float
+                 ) -> tuple[Array, Array, Array]:
+    """Knots of toppra's answer (path speeds sd (N,) rad/s at the grid (N,) rad, constant
+    path acceleration between them): every grid point, and at most ``dt`` s apart."""
+    ds, v_sum = np.diff(grid), sd[:-1] + sd[1:]
+    if np.any(v_sum <= 0):
+        i = int(np.argmax(v_sum <= 0))
+        raise TrajectoryError(f"toppra stops inside the path (s = {grid[i]:.4g} rad)")
+    h = 2 * ds / v_sum                                   # s per stage
+    u = (sd[1:] ** 2 - sd[:-1] ** 2) / (2 * ds)          # rad/s², constant within a stage
+    m = np.maximum(np.ceil(h / dt).astype(int), 1)
+    stage = np.repeat(np.arange(len(h)), m)
+    tau = (np.arange(m.sum()) - np.repeat(np.cumsum(m) - m, m)) / m[stage] * h[stage]
+    t0 = np.concatenate([[0.0], np.cumsum(h)])
+    t = np.append(t0[stage] + tau, t0[-1])
+    s = np.append(grid[stage] + sd[stage] * tau + u[stage] * tau ** 2 / 2, grid[-1])
+    s_dot = np.append(sd[stage] + u[stage] * tau, sd[-1])
+    return t, path(s), path(s, 1) * s_dot[:, None]
+
+
+def _concatenate(names: tuple[str, ...], pieces: list[tuple[Array, Array, Array]]
+                 ) -> JointTrajectory:
+    """One trajectory of rest-to-rest pieces (times from 0 each), one after the other: each
+    piece's first knot (at rest where the last one ended) is dropped."""
+    t0, ts, qs, vs = 0.0, [], [], []
+    for i, (t, q, v) in enumerate(pieces):
+        k = 0 if i == 0 else 1
+        ts.append(t0 + t[k:])
+        qs.append(q[k:])
+        vs.append(v[k:])
+        t0 += float(t[-1])
+    return JointTrajectory.from_velocities(names, np.concatenate(ts), np.concatenate(qs),
+                                           np.concatenate(vs))
+
+
+# --- ruckig, segment by segment ---------------------------------------------------------------
 def _ruckig_segments(P: Array, names: tuple[str, ...], limits: Limits,
                      config: TimingConfig) -> JointTrajectory:
     """Rest-to-rest, jerk-limited motion along each straight segment in turn."""
     from ruckig import InputParameter, Result, Ruckig, Trajectory
 
-    t0, pieces = 0.0, []
+    pieces = []
     for a, b in itertools.pairwise(P):
         L = float(np.linalg.norm(b - a))
         u = (b - a) / L
@@ -212,12 +431,8 @@ def _ruckig_segments(P: Array, names: tuple[str, ...], limits: Limits,
             raise TrajectoryError("ruckig found no motion along a segment")
         ts = _knot_times(float(traj.duration), config.knot_dt_s)
         s = np.array([traj.at_time(float(t)) for t in ts])[:, :, 0]   # (n, 3): s, ṡ, s̈
-        pieces.append((t0 + ts, a + s[:, :1] * u, s[:, 1:2] * u, s[:, 2:3] * u))
-        t0 += float(traj.duration)
-    # consecutive segments share their end knot (at rest): keep it once
-    cat = [np.concatenate([p[k] if i == 0 else p[k][1:] for i, p in enumerate(pieces)])
-           for k in range(4)]
-    return JointTrajectory.from_velocities(names, cat[0], cat[1], cat[2])
+        pieces.append((ts, a + s[:, :1] * u, s[:, 1:2] * u))
+    return _concatenate(names, pieces)
 
 
 def _along(limit: Array, u: Array) -> float:
