@@ -331,12 +331,14 @@ class BlendedPolyline:
             j = np.flatnonzero(np.abs(self.arc_s0 - a) <= 1e-12)
             turns = int(np.ceil(self.arc_angle[j[0]] / ARC_STEP_RAD)) if len(j) else 1
             parts.append(np.linspace(a, b, max(int(np.ceil((b - a) / step)), turns) + 1))
-            if not len(j):
-                k = np.arange(int(np.log2(max((b - a) / 2 / GRADED_FROM_RAD, 1.0))) + 1)
-                g = GRADED_FROM_RAD * 2.0 ** k
+            if not len(j) and b - a > 2 * GRADED_FROM_RAD:
+                k = np.arange(int(np.log2((b - a) / 2 / GRADED_FROM_RAD)) + 1)
+                g = GRADED_FROM_RAD * 2.0 ** k                   # all <= (b - a) / 2
                 parts.append(np.concatenate([a + g, b - g]))
         grid = np.unique(np.concatenate(parts))
-        return grid[np.concatenate([[True], np.diff(grid) > 1e-9])]
+        grid = grid[np.concatenate([[True], np.diff(grid) > 1e-9])]
+        grid[-1] = self.length               # toppra wants the path's ends exactly
+        return grid
 
 
 def _toppra(P: Array, names: tuple[str, ...], limits: Limits, config: TimingConfig
