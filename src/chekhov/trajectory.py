@@ -1,19 +1,22 @@
 """A timed joint trajectory: :class:`JointTrajectory`.
 
 Knots: positions (T, K) rad at times (T,) s, with velocities (T, K) rad/s and accelerations
-(T, K) rad/s². Between knots the trajectory is the cubic Hermite polynomial of each joint that
-matches position and velocity at both ends, so :meth:`sample` returns a velocity that is the
-derivative of the position it returns and an acceleration that is the derivative of that
-velocity (C¹; the acceleration is linear within an interval, so its extremes are at the
-knots and velocity and acceleration limits can be checked exactly:
+(T, K) rad/s². Between knots the trajectory is the **cubic Hermite** polynomial of each joint
+that matches position and velocity at both ends, so :meth:`~JointTrajectory.sample` returns a
+velocity that is the derivative of the position it returns and an acceleration that is the
+derivative of that velocity (C¹; the acceleration is linear within an interval, so its extremes
+are at the knots and velocity and acceleration limits can be checked exactly:
 :func:`hermite_accelerations`). The stored accelerations are the interpolant's at each knot
-(from the right; the last knot's from the left): :meth:`JointTrajectory.from_velocities`
-computes them. Time parameterisation (:func:`chekhov.timing.time_parameterize`) writes knots
-a few ms apart.
+(from the right; the last knot's from the left): :meth:`JointTrajectory.from_velocities` and
+:meth:`JointTrajectory.from_waypoints` compute them, and then ``sample`` at a stored time returns
+the stored values. (A trajectory built directly with other accelerations keeps them as given;
+``sample`` still returns the interpolant's.) Time parameterisation
+(:func:`chekhov.timing.time_parameterize`) writes knots a few ms apart.
 
-File format (``save`` / ``load``): an ``.npz`` with ``format`` = "chekhov-trajectory",
-``version`` = 1, ``joint_names`` (K,) str, ``times`` (T,), ``positions``, ``velocities``,
-``accelerations`` (T, K) float64; units rad, s. Written atomically.
+File format (``save`` / ``load``): an ``.npz`` (NumPy zip, no pickles) with ``format`` =
+"chekhov-trajectory", ``version`` = 1, ``joint_names`` (K,) str, ``times`` (T,),
+``positions``, ``velocities``, ``accelerations`` (T, K) float64; units rad, s. Written
+atomically (a temporary file in the same folder, then renamed over the target).
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.interpolate import CubicSpline
 
 from chekhov.atomic import write_atomic
 from chekhov.errors import TrajectoryError
@@ -84,6 +88,23 @@ class JointTrajectory:
         a_start, a_end = hermite_accelerations(t, P, V)
         return cls(joint_names, t, P, V, np.vstack([a_start, a_end[-1:]]))
 
+    @classmethod
+    def from_waypoints(cls, positions: Array, times: Array, joint_names: tuple[str, ...]
+                       ) -> JointTrajectory:
+        """The C² cubic spline through positions (T, K) rad at times (T,) s, at rest at both
+        ends (scipy's clamped ``CubicSpline``): its velocities (rad/s) and accelerations
+        (rad/s²) at the knots, which the cubic Hermite interpolation reproduces exactly. It
+        may overshoot the waypoints between them; no limits are applied (for that, use
+        :func:`chekhov.timing.time_parameterize`)."""
+        P = np.asarray(positions, dtype=float)
+        z = np.zeros_like(P) if P.ndim == 2 else P
+        first = cls(joint_names, times, P, z, z)            # validates, locating the field
+        if len(first.times) < 2:
+            return first
+        spline = CubicSpline(first.times, first.positions, bc_type="clamped", axis=0)
+        return cls.from_velocities(first.joint_names, first.times, first.positions,
+                                   spline(first.times, 1))
+
     # --- properties -------------------------------------------------------------------
     @property
     def dof(self) -> int:
@@ -117,9 +138,12 @@ class JointTrajectory:
         return out[0], out[1], out[2]
 
     def resample(self, dt: float) -> JointTrajectory:
-        """Knots every ``dt`` s (and at the end), sampled from this trajectory."""
+        """Knots every ``dt`` s (and at the end), sampled from this trajectory: the same
+        motion where it is (piecewise) cubic, a close approximation elsewhere."""
         if not (np.isfinite(dt) and dt > 0):
             raise TrajectoryError(f"resample: dt must be a positive number of s, got {dt!r}")
+        if len(self.times) == 1:
+            return self
         ts = np.arange(0.0, self.duration, dt)
         ts = np.append(ts, self.duration) if self.duration > ts[-1] else ts
         return self._at(ts)
@@ -159,9 +183,12 @@ class JointTrajectory:
         for name in fields:
             if name not in data:
                 raise TrajectoryError(f"{path}: field '{name}' is missing")
-        if str(data["format"]) != FORMAT or int(data["version"]) != VERSION:
-            raise TrajectoryError(f"{path}: format {str(data['format'])!r} version "
-                                  f"{data['version']!s}, expected {FORMAT!r} version {VERSION}")
+        if data["format"].shape != () or str(data["format"]) != FORMAT:
+            raise TrajectoryError(f"{path}: field 'format' is {str(data['format'])[:40]!r}, "
+                                  f"expected {FORMAT!r}")
+        if data["version"].shape != () or str(data["version"]) != str(VERSION):
+            raise TrajectoryError(f"{path}: field 'version' is {str(data['version'])[:40]}, "
+                                  f"expected {VERSION} (a newer chekhov wrote it?)")
         try:
             return cls(tuple(str(n) for n in np.atleast_1d(data["joint_names"])),
                        data["times"], data["positions"], data["velocities"],
