@@ -1,5 +1,5 @@
 """A timed trajectory: plan, time-parameterise under the robot's velocity limits and an
-acceleration limit (toppra; ruckig when the spline would leave the certified path), and plot
+acceleration limit (toppra along the path with rounded corners; ruckig if that is refused), and plot
 joint positions and velocities against their limits.
 
     python examples/04_timed_trajectory.py [out.png]

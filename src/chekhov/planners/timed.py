@@ -25,10 +25,11 @@ check (a planner's certified path: ≤ 0.16 rad segments at 100 substeps)."""
 
 def timed_trajectory(world: World, path: Array, config: TimingConfig | None = None) -> Timed:
     """``path`` (T, K) rad, certified collision-free, timed under the robot's velocity limits
-    and ``config``. A trajectory that leaves the path's polyline (toppra's spline) is kept only
-    when its knots stay within the joint limits and are collision-free by the exact decision
-    at steps of at most :data:`CHECK_STEP_RAD`; otherwise the polyline itself is timed with
-    ruckig (at rest at each waypoint), which needs no new check — as it is when toppra fails.
+    and ``config``. A trajectory that leaves the path's polyline (toppra's rounded corners) is
+    kept only when its knots stay within the joint limits and are collision-free by the exact
+    decision at steps of at most :data:`CHECK_STEP_RAD`; otherwise the polyline itself is
+    timed with ruckig (at rest at each waypoint), which needs no new check — as it is when
+    toppra fails.
     Raises :class:`TrajectoryError` only when ruckig fails too."""
     config = config if config is not None else TimingConfig()
     robot = world.robot
