@@ -40,7 +40,7 @@ from scipy.spatial import cKDTree
 from chekhov.planners.base import PlannerBase, PlanResult, solve_goal_ik
 from chekhov.planners.query import PlanQuery
 from chekhov.planners.status import PlanStatus
-from chekhov.roadmap.search import astar_any
+from chekhov.roadmap.search import astar_any, csr_adjacency
 from chekhov.world import World
 
 Array = NDArray[np.float64]
@@ -207,17 +207,6 @@ def connect(X: Array, new: IntArray, k: int, max_edge: float) -> IntArray:
     return np.stack([key // len(X), key % len(X)], axis=1).astype(np.int64)
 
 
-def _csr(n: int, edges: IntArray) -> tuple[IntArray, IntArray, IntArray]:
-    """Adjacency of an undirected edge list: (indptr (n+1,), neighbour, edge id)."""
-    src = np.concatenate([edges[:, 0], edges[:, 1]])
-    dst = np.concatenate([edges[:, 1], edges[:, 0]])
-    eid = np.concatenate([np.arange(len(edges)), np.arange(len(edges))]).astype(np.int64)
-    order = np.argsort(src, kind="stable")
-    indptr = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(np.bincount(src, minlength=n), out=indptr[1:])
-    return indptr, dst[order].astype(np.int64), eid[order]
-
-
 def lazy_shortest_path(X: Array, edges: IntArray, start: int, goals: IntArray,
                        node_valid: NodeValid, edge_valid: EdgeValid, resolution: float,
                        node_state: NDArray[np.int8] | None = None,
@@ -249,8 +238,8 @@ def lazy_shortest_path(X: Array, edges: IntArray, start: int, goals: IntArray,
         stats.setdefault(key, 0)
     for key in ("search", "check"):
         timing.setdefault(key, 0.0)
-    indptr, nbr, eid = _csr(n, edges)
-    w_entry = np.linalg.norm(X[edges[:, 1]] - X[edges[:, 0]], axis=1)[eid]   # per CSR entry
+    indptr, nbr, w_entry, eid = csr_adjacency(
+        n, edges, np.linalg.norm(X[edges[:, 1]] - X[edges[:, 0]], axis=1))
     goals = np.asarray(goals, dtype=np.int64)
     is_goal = np.zeros(n, dtype=np.bool_)
     is_goal[goals] = True

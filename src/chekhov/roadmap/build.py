@@ -18,6 +18,7 @@ from chekhov.roadmap.config import RoadmapConfig
 from chekhov.roadmap.errors import RoadmapError
 from chekhov.roadmap.graph import FORMAT_VERSION, NODE_KINDS, Roadmap, RoadmapMeta
 from chekhov.roadmap.kpaths import yen_k_shortest
+from chekhov.roadmap.search import csr_adjacency
 from chekhov.robot.chain_kinematics import ChainKinematics
 from chekhov.world import World
 
@@ -197,19 +198,6 @@ class _Builder:
         return edges, lengths
 
 
-def _csr(N: int, edges: NDArray[np.int64], lengths: Array
-         ) -> tuple[NDArray[np.int64], NDArray[np.int64], Array, NDArray[np.int64]]:
-    u = np.concatenate([edges[:, 0], edges[:, 1]])
-    v = np.concatenate([edges[:, 1], edges[:, 0]])
-    eid = np.concatenate([np.arange(len(edges)), np.arange(len(edges))])
-    order = np.lexsort((v, u))
-    indptr = np.zeros(N + 1, dtype=np.int64)
-    np.cumsum(np.bincount(u, minlength=N), out=indptr[1:])
-    w = np.concatenate([lengths, lengths])
-    return indptr, v[order].astype(np.int64), w[order].astype(np.float64), eid[order].astype(
-        np.int64)
-
-
 def build_roadmap(world: World, config: RoadmapConfig | None = None,
                   progress: Progress | None = None) -> Roadmap:
     """Build a roadmap for ``world``'s scene and robot against its static obstacles only.
@@ -261,7 +249,7 @@ def build_roadmap(world: World, config: RoadmapConfig | None = None,
     A = coo_matrix((lengths, (edges[:, 0], edges[:, 1])), shape=(N, N)).tocsr()
     dist, pred = shortest_path(A, method="D", directed=False, return_predecessors=True)
     pred = pred.astype(np.int16 if N < 32767 else np.int32)
-    indptr, indices, weights, edge_id = _csr(N, edges, lengths)
+    indptr, indices, weights, edge_id = csr_adjacency(N, edges, lengths)
     R, p = b.kin.ee_poses(nodes)
     # k shortest paths between semantic nodes
     sem = np.flatnonzero(kind == 1)

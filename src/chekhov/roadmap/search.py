@@ -99,6 +99,22 @@ def astar(indptr, indices, weights, edge_id, src, dst, heuristic, node_ok,
                      edge_ok, dst)
 
 
+def csr_adjacency(N: int, edges: IntArray, lengths: NDArray[np.float64]
+                  ) -> tuple[IntArray, IntArray, NDArray[np.float64], IntArray]:
+    """The CSR adjacency of N nodes joined by undirected ``edges`` (E, 2) of ``lengths`` (E,):
+    (indptr (N+1,), indices, weights, edge_id), each edge once per direction, every row
+    sorted by neighbour (as :func:`edge_lookup` needs)."""
+    u = np.concatenate([edges[:, 0], edges[:, 1]])
+    v = np.concatenate([edges[:, 1], edges[:, 0]])
+    eid = np.concatenate([np.arange(len(edges)), np.arange(len(edges))])
+    order = np.lexsort((v, u))
+    indptr = np.zeros(N + 1, dtype=np.int64)
+    np.cumsum(np.bincount(u, minlength=N), out=indptr[1:])
+    w = np.concatenate([lengths, lengths])
+    return (indptr, v[order].astype(np.int64), w[order].astype(np.float64),
+            eid[order].astype(np.int64))
+
+
 def edge_lookup(indptr: IntArray, indices: IntArray, edge_id: IntArray, u: int, v: int) -> int:
     """Edge id of (u, v), or -1 when they are not adjacent (rows of ``indices`` sorted)."""
     lo, hi = int(indptr[u]), int(indptr[u + 1])
