@@ -13,11 +13,12 @@ from scipy.sparse.csgraph import dijkstra
 
 from chekhov.cli import main
 from chekhov.collision.fast import FastChecker
-from chekhov.roadmap.build import _csr, build_roadmap
+from chekhov.roadmap.build import build_roadmap
 from chekhov.roadmap.config import RoadmapConfig
 from chekhov.roadmap.errors import RoadmapError, RoadmapMismatchError
 from chekhov.roadmap.io import load_or_build_roadmap, load_roadmap, save_roadmap
 from chekhov.roadmap.kpaths import KShortestPaths, yen_k_shortest
+from chekhov.roadmap.search import csr_adjacency
 from chekhov.roadmap.seeder import RoadmapSeeder
 from chekhov.robot.chain_kinematics import ChainKinematics
 from chekhov.robot.goal import Goal
@@ -68,7 +69,7 @@ def test_yen_matches_brute_force_enumeration():
     pairs = [(a, b) for a, b in itertools.combinations(range(N), 2) if rng.random() < 0.5]
     edges = np.array(pairs, dtype=np.int64)
     w = rng.uniform(0.5, 2.0, len(edges)).round(3)  # distinct sums almost surely
-    indptr, indices, weights, eid = _csr(N, edges, w)
+    indptr, indices, weights, eid = csr_adjacency(N, edges, w)
     adj = {i: [] for i in range(N)}
     length = {}
     for (a, b), c in zip(pairs, w, strict=True):
