@@ -18,7 +18,7 @@ from chekhov.bench.registry import PlannerSpec, seed_planner_name
 from chekhov.bench.task import RunTask
 from chekhov.errors import ChekhovError, TrajectoryError
 from chekhov.planners.base import Planner, PlanResult, path_length
-from chekhov.planners.status import PlanStatus, Stage
+from chekhov.planners.status import PlanStatus, Stage, scalar_items
 from chekhov.planners.timed import timed_trajectory
 from chekhov.roadmap.graph import Roadmap
 from chekhov.robot.goal import Goal
@@ -155,7 +155,7 @@ class BenchWorker:
             seed_time_s=seed_time, seed_found=seed_found,
             trajopt_status=str(trajopt_status) if trajopt_status is not None else None,
             fallback_to_seed=bool(fallback) if fallback is not None else None,
-            info={**_scalars(r.info), **timed, **(extra_info or {})}, worker=self.name)
+            info={**scalar_items(r.info), **timed, **(extra_info or {})}, worker=self.name)
 
 
 def load_roadmap_for(world: World, config: BenchConfig) -> Roadmap:
@@ -190,18 +190,3 @@ def _seed_of(r: PlanResult) -> tuple[np.ndarray | None, bool | None]:
             return None, False
         return np.asarray(report.path, dtype=float), True
     return (None, False) if r.seed is None else (np.asarray(r.seed, dtype=float), True)
-
-
-def _scalars(info: dict[str, object]) -> dict[str, object]:
-    """The JSON-able scalar entries of a PlanResult.info (arrays and nested paths dropped)."""
-    out: dict[str, object] = {}
-    for k, v in info.items():
-        if isinstance(v, bool | int | float | str) or v is None:
-            out[k] = v
-        elif isinstance(v, np.generic):
-            out[k] = v.item()
-        elif isinstance(v, dict) and all(isinstance(x, int | float | str | bool)
-                                         for x in v.values()):
-            out[k] = {str(a): (b.item() if isinstance(b, np.generic) else b)
-                      for a, b in v.items()}
-    return out

@@ -15,7 +15,7 @@ from chekhov.errors import ChekhovError
 from chekhov.planners.base import PlannerBase, PlanResult, path_length, resample_path
 from chekhov.planners.query import PlanQuery
 from chekhov.planners.shortcut import shortcut_path
-from chekhov.planners.status import PlanStatus, Stage, StageReport
+from chekhov.planners.status import PlanStatus, Stage, StageReport, scalar_items
 from chekhov.planners.trajopt_planner import TrajOptPlanner, optimise_report
 from chekhov.roadmap.graph import Roadmap
 from chekhov.roadmap.seeder import RoadmapSeeder, SeederConfig, SeedResult
@@ -136,7 +136,7 @@ class RoadmapTrajOpt(PlannerBase):
         run.timing["seed"] = s.timing_s.get("total", time.perf_counter() - t_seed)
         run.stages.append(StageReport(
             Stage.ROADMAP_SEED, PlanStatus.of(s.status), run.timing["seed"], s.path,
-            {"routes": sum(f.path is not None for f in found), **_scalars(s.info)}))
+            {"routes": sum(f.path is not None for f in found), **scalar_items(s.info)}))
         if not s.success or s.path is None:
             return self._no_seed(run, s)
         t1 = time.perf_counter()
@@ -303,7 +303,3 @@ class _Run:
         self.timing: dict[str, float] = {}
         self.stages: list[StageReport] = []
 
-
-def _scalars(info: dict[str, object]) -> dict[str, object]:
-    """The scalar entries of a seeder's info (for a stage report's detail)."""
-    return {k: v for k, v in info.items() if isinstance(v, bool | int | float | str)}

@@ -82,3 +82,19 @@ class StageReport:
     time_s: float
     path: Array | None = None
     detail: dict[str, object] = field(default_factory=dict)
+
+
+def scalar_items(info: dict[str, object]) -> dict[str, object]:
+    """The JSON-able entries of an ``info`` dict: scalars (NumPy ones as Python's), None, and
+    flat dicts of scalars; arrays, paths and nested structures dropped."""
+    out: dict[str, object] = {}
+    for k, v in info.items():
+        if isinstance(v, bool | int | float | str) or v is None:
+            out[k] = v
+        elif isinstance(v, np.generic):
+            out[k] = v.item()
+        elif isinstance(v, dict) and all(isinstance(x, int | float | str | bool)
+                                         for x in v.values()):
+            out[k] = {str(a): (b.item() if isinstance(b, np.generic) else b)
+                      for a, b in v.items()}
+    return out
