@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from chekhov.bench import CaseSet, cached_cases, generate_cases, solvability_pass
-from chekhov.bench.cases import sample_case
+from chekhov.cases import sample_case
 from chekhov.cli import main
 from chekhov.errors import ChekhovError
 from chekhov.planners.base import PlanResult

@@ -24,6 +24,22 @@ def test_show_writes_png(tmp_path):
     assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 20_000
 
 
+def test_show_plans_a_case_with_a_registry_planner(tmp_path, monkeypatch, capsys):
+    """``show --case`` takes any registry planner (aliases too), not only the viewer's menu."""
+    from chekhov.cases import generate_cases
+    from chekhov.world import World
+
+    cases = tmp_path / "c.npz"
+    generate_cases(World.load("tabletop_pole"), 1, seed=3).save(cases)
+    out = tmp_path / "case.png"
+    assert main(["show", "tabletop_pole", "--case", "0", "--cases", str(cases), "--planner",
+                 "lazyprm+trajopt", "--out", str(out)]) == 0
+    assert "LazyPRM+TrajOpt case 0" in capsys.readouterr().out
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert main(["show", "tabletop_pole", "--case", "0", "--planner", "Nope"]) == 2
+    assert "--planner: unknown planner 'Nope'" in capsys.readouterr().err
+
+
 def test_bad_input_gets_a_clear_error(capsys):
     assert main(["show", "tabletop_pole", "--q", "1", "2"]) == 2
     assert "expected 7 joint values" in capsys.readouterr().err

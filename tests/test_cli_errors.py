@@ -19,7 +19,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from chekhov.bench.cases import CaseSet
+from chekhov.cases import CaseSet
 from chekhov.cli import build_parser, main
 from chekhov.errors import ChekhovError
 

@@ -17,7 +17,7 @@ import pytest
 pytest.importorskip("viser", reason="the viewer needs viser (pip install 'chekhov[viewer]')")
 
 from chekhov import World, build_roadmap, save_roadmap
-from chekhov.bench.cases import generate_cases
+from chekhov.cases import generate_cases
 from chekhov.errors import ChekhovError
 from chekhov.roadmap.config import RoadmapConfig
 from chekhov.scene.model import Shape

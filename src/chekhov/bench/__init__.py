@@ -9,7 +9,8 @@ The runner, database and report are imported on first use (they pull in every pl
 
 from typing import Any
 
-from chekhov.bench.cases import (
+from chekhov.bench.solvability import SolvabilityReport, solvability_pass
+from chekhov.cases import (
     CASE_FORMAT,
     CASE_FORMAT_VERSION,
     CaseSet,
@@ -18,7 +19,6 @@ from chekhov.bench.cases import (
     generate_cases,
     sample_free,
 )
-from chekhov.bench.solvability import SolvabilityReport, solvability_pass
 
 _LAZY = {"BenchConfig": "chekhov.bench.config", "run_benchmark": "chekhov.bench.runner",
          "BenchOutcome": "chekhov.bench.runner", "BenchDatabase": "chekhov.bench.database",

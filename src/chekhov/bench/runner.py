@@ -31,7 +31,6 @@ import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from chekhov.bench.cases import CaseSet
 from chekhov.bench.claims import ClaimedTasks, Key, Session
 from chekhov.bench.config import BenchConfig
 from chekhov.bench.database import BenchDatabase
@@ -46,6 +45,7 @@ from chekhov.bench.registry import (
 from chekhov.bench.solvability import cached_solvable_cases
 from chekhov.bench.task import RunTask, case_hash
 from chekhov.bench.worker import load_roadmap_for
+from chekhov.cases import CaseSet
 from chekhov.errors import BenchError, ChekhovError
 from chekhov.roadmap.graph import Roadmap
 from chekhov.world import World

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from chekhov.bench.cases import (
+from chekhov.cases import (
     CaseSet,
     cache_stem,
     cached_cases,

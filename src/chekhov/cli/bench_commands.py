@@ -48,7 +48,7 @@ def _check_case_files(files: list[str] | None, scenes: dict[str, str]
                       ) -> tuple[tuple[str, str], ...]:
     """(``--scenes`` entry, case file) of each ``--case-file``, matched by the scene it was
     made for; at most one per scene."""
-    from chekhov.bench.cases import CaseSet
+    from chekhov.cases import CaseSet
 
     entry_of = {name: entry for entry, name in scenes.items()}
     out: dict[str, str] = {}

@@ -48,8 +48,8 @@ def _check_generate_args(args: argparse.Namespace) -> Path:
 
 
 def _cmd_generate(args: argparse.Namespace) -> int:
-    from chekhov.bench.cases import generate_cases
     from chekhov.bench.solvability import solvability_pass
+    from chekhov.cases import generate_cases
     from chekhov.planners.ompl_planner import OmplPlanner
     from chekhov.world import World
 
@@ -81,7 +81,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
 
 
 def _cmd_info(args: argparse.Namespace) -> int:
-    from chekhov.bench.cases import CaseSet
+    from chekhov.cases import CaseSet
     from chekhov.world import World
 
     checks.input_file(args.file, "case file")

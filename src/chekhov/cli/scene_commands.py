@@ -14,6 +14,8 @@ from chekhov.cli import checks
 from chekhov.errors import ChekhovError
 
 if TYPE_CHECKING:
+    from chekhov.planners.result import PlanResult
+    from chekhov.roadmap.graph import Roadmap
     from chekhov.world import World
 
 
@@ -75,7 +77,14 @@ def _check_show_args(args: argparse.Namespace) -> None:
                             ("--roadmap", args.roadmap)):
             if value is not None:
                 raise ChekhovError(f"{flag} is used only with --case N")
-    if args.roadmap is not None and (args.planner or ROADMAP_TRAJOPT) != ROADMAP_TRAJOPT:
+    if args.case is not None:
+        from chekhov.planners.registry import canonical_planner_name
+
+        try:
+            args.planner = canonical_planner_name(args.planner or ROADMAP_TRAJOPT)
+        except ChekhovError as e:
+            raise ChekhovError(f"--planner: {e}") from e
+    if args.roadmap is not None and not args.planner.startswith(ROADMAP_TRAJOPT):
         raise ChekhovError(f"--roadmap is used only by --planner {ROADMAP_TRAJOPT}, "
                            f"not {args.planner}")
     if args.case is not None and args.cases is None and args.case >= SHOW_CACHED_CASES:
@@ -87,7 +96,7 @@ def _check_show_args(args: argparse.Namespace) -> None:
         if value is not None:
             checks.input_file(value, flag)
     if args.case is not None and args.cases is not None:
-        from chekhov.bench.cases import CaseSet
+        from chekhov.cases import CaseSet
 
         n = len(CaseSet.load(args.cases))
         if args.case >= n:
@@ -154,34 +163,47 @@ def _cmd_show(args: argparse.Namespace) -> int:
 
 def _plan_case(world: World, args: argparse.Namespace
                ) -> tuple[np.ndarray, np.ndarray | None, str]:
-    """Plan case ``args.case`` with ``args.planner``; (path, seed, a note for the output)."""
-    from chekhov.bench.cases import CaseSet, cached_cases
+    """Plan case ``args.case`` with ``args.planner`` (a registry name, checked); (path, seed,
+    a note for the output)."""
+    from chekhov.cases import CaseSet, cached_cases
+    from chekhov.planners.registry import make_planner
     from chekhov.roadmap.io import load_or_build_roadmap, load_roadmap
-    from chekhov.viewer.planning import PlannerPool, PlanView
 
     cases = CaseSet.load(args.cases, world) if args.cases else cached_cases(
         world, max(20, args.case + 1))
-    args.planner = args.planner or ROADMAP_TRAJOPT
-    roadmap = None
-    if args.planner == ROADMAP_TRAJOPT:
-        roadmap = (load_roadmap(args.roadmap, world) if args.roadmap
-                   else load_or_build_roadmap(world))
-    planner = PlannerPool(world, roadmap).get(args.planner)
+
+    def roadmap() -> Roadmap:  # loaded only for the planners that use one
+        return (load_roadmap(args.roadmap, world) if args.roadmap
+                else load_or_build_roadmap(world))
+
+    planner = make_planner(args.planner, world, roadmap)
     result = planner.plan(cases.q_start[args.case], cases.goal(args.case))
-    view = PlanView.of(world, args.planner, result)
-    if view.path is None:
+    if not result.success or result.path is None:
         raise ChekhovError(f"{args.planner} found no path for case {args.case}: "
                            f"{result.status}")
     timing = ", ".join(f"{k} {1e3 * v:.0f} ms" for k, v in result.timing_s.items())
-    return view.path, view.seed, (f", {args.planner} case {args.case}: "
-                                  f"{1e3 * result.time_s:.0f} ms ({timing}), "
-                                  f"length {result.path_length:.2f} rad")
+    return result.path, seed_path(result), (f", {args.planner} case {args.case}: "
+                                            f"{1e3 * result.time_s:.0f} ms ({timing}), "
+                                            f"length {result.path_length:.2f} rad")
+
+
+def seed_path(result: PlanResult) -> np.ndarray | None:
+    """The seed a picture shows: the path of the stage the final optimisation started from
+    when that was a route (the roadmap's, or another planner's), else ``result.seed`` (such as
+    TrajOpt's straight line); (T', K) rad, or None."""
+    from chekhov.planners.status import Stage
+
+    report = result.seed_report
+    if report is not None and report.stage in (Stage.ROADMAP_SEED, Stage.SEED) \
+            and report.path is not None:
+        return np.atleast_2d(np.asarray(report.path, dtype=float))
+    return None if result.seed is None else np.atleast_2d(np.asarray(result.seed, dtype=float))
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
     """The main job: per scene, load or build the roadmap, plan random cases with Roadmap +
     TrajOpt (every answer exactly checked), report timings, write a picture of one plan."""
-    from chekhov.bench.cases import generate_cases
+    from chekhov.cases import generate_cases
     from chekhov.planners.base import path_length
     from chekhov.planners.registry import make_planner
     from chekhov.roadmap.io import load_or_build_roadmap
@@ -231,9 +253,9 @@ def _register_show(sub: argparse._SubParsersAction) -> None:
                    help="plan this case (0-based; of --cases, else one of the first "
                         f"{SHOW_CACHED_CASES} cached cases) and draw the trajectory and its seed")
     p.add_argument("--cases", metavar="FILE", help="case file for --case")
-    p.add_argument("--planner", default=None,
-                   choices=[ROADMAP_TRAJOPT, "TrajOpt", "RRTConnect", "RRTConnect+TrajOpt"],
-                   help=f"planner for --case (default {ROADMAP_TRAJOPT})")
+    p.add_argument("--planner", default=None, metavar="NAME",
+                   help=f"planner for --case, any of `chekhov bench`'s (TrajOpt, RRTConnect, "
+                        f"LazyPRM+TrajOpt, …; default {ROADMAP_TRAJOPT})")
     p.add_argument("--roadmap", metavar="FILE",
                    help="roadmap file for --case (default: the cached one)")
     p.add_argument("--ghosts", type=checks.int_at_least(0, 200), default=6, metavar="N",

@@ -24,7 +24,7 @@ def _cmd_view(args: argparse.Namespace) -> int:
             checks.input_file(value, flag)
     load_scene(args.scene)
     check_port_free(args.host, args.port)  # fail fast, before loading anything
-    from chekhov.bench.cases import CaseSet, cached_cases
+    from chekhov.cases import CaseSet, cached_cases
     from chekhov.roadmap.io import load_or_build_roadmap, load_roadmap
     from chekhov.viewer.app import Viewer
     from chekhov.world import World

@@ -26,7 +26,7 @@ except ImportError as e:  # pragma: no cover - depends on the install
     raise ChekhovError("the 3D viewer needs the PyPI package 'viser': "
                        "pip install 'chekhov[viewer]'") from e
 
-from chekhov.bench.cases import CaseSet, cached_cases
+from chekhov.cases import CaseSet, cached_cases
 from chekhov.roadmap.graph import Roadmap
 from chekhov.robot.goal import Goal
 from chekhov.scene.model import Pose, SceneObject, Shape
