@@ -316,10 +316,10 @@ def test_interrupted_save_or_build_leaves_no_corrupt_file(tmp_path, world, roadm
     assert fresh.is_file() and again.n_nodes == roadmap.n_nodes
 
 
-def test_nearest_poses_and_distinct_rows_match_numpy():
+def test_nearest_poses_match_numpy():
     from scipy.spatial.transform import Rotation
 
-    from chekhov.roadmap.nearest import NearestNodes, distinct_rows, nearest_poses
+    from chekhov.roadmap.nearest import NearestNodes, nearest_poses
 
     rng = np.random.default_rng(2)
     P = rng.uniform(-1, 1, (300, 3))
@@ -331,9 +331,6 @@ def test_nearest_poses_and_distinct_rows_match_numpy():
     angle = np.arccos(np.clip((np.einsum("nij,ij->n", R[near], T[:3, :3]) - 1) / 2, -1, 1))
     ref = near[np.argsort(d[near] + 0.2 * angle, kind="stable")[:6]]
     np.testing.assert_array_equal(nearest_poses(NearestNodes(P), R, T, 24, 6), ref)
-    Q = np.array([[0.0, 0], [0.05, 0], [0.2, 0], [0.21, 0.01], [1, 1]])
-    np.testing.assert_array_equal(distinct_rows(Q, 0.1, 5), Q[[0, 2, 4]])
-    np.testing.assert_array_equal(distinct_rows(Q, 0.1, 2), Q[[0, 2]])
 
 
 def test_last_resorts_are_only_for_a_connection_the_query_needs(world, seeder, monkeypatch):

@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 
 from chekhov.collision.exact import ExactChecker
 from chekhov.collision.fast import FastChecker
+from chekhov.robot.goal_ik import GoalResolver
 from chekhov.robot.ik import solve_ik
 from chekhov.robot.robot import Robot
 from chekhov.scene.io import load_scene
@@ -42,6 +43,14 @@ class World:
         fast = FastChecker(self.robot, self.scene)
         fast.warm_up()  # compile (or load) its kernels before anyone times a query
         return fast
+
+    @cached_property
+    def goal_ik(self) -> GoalResolver:
+        """The goal resolver of this world: configurations meeting a goal, collision-free by
+        the fast checker (its current obstacles)."""
+        resolver = GoalResolver(self.robot, self.fast.valid)
+        resolver.warmup()
+        return resolver
 
     @cached_property
     def exact(self) -> ExactChecker:

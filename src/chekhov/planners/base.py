@@ -3,7 +3,6 @@ certifies every answer in one place, and goal IK helpers."""
 
 from __future__ import annotations
 
-import math
 import time
 from abc import ABC, abstractmethod
 from dataclasses import replace
@@ -15,7 +14,7 @@ from numpy.typing import NDArray
 if TYPE_CHECKING:
     from chekhov.world import World
 
-from chekhov.errors import IKError, TrajectoryError
+from chekhov.errors import TrajectoryError
 from chekhov.paths import path_length, resample_path
 from chekhov.planners.certify import certify
 from chekhov.planners.query import PlanQuery, make_query
@@ -31,7 +30,6 @@ __all__ = [
     "PlanResult",
     "Planner",
     "PlannerBase",
-    "goal_configurations",
     "path_length",
     "resample_path",
     "solve_goal_ik",
@@ -124,29 +122,24 @@ class PlannerBase(ABC):
         return None
 
 
-def goal_configurations(world: World, goal: Goal, n_ik: int, rng: np.random.Generator,
-                        deadline: float = math.inf) -> Array:
-    """Goal configurations (n, K): ``goal.q``, or up to ``n_ik`` collision-free (fast checker)
-    IK solutions of ``goal.T_world_ee`` (no IK restart after ``deadline``, a perf_counter
-    value). Raises :class:`IKError` when there is none."""
-    if goal.q is not None:
-        return world.robot.check_configuration(goal.q, "goal configuration")[None, :]
-    assert goal.T_world_ee is not None
-    return world.solve_ik(goal.T_world_ee, n_solutions=n_ik, rng=rng, deadline=deadline)
-
-
-def solve_goal_ik(world: World, query: PlanQuery, n_ik: int, rng: np.random.Generator,
-                  timing: dict[str, float], info: dict[str, object]) -> Array | None:
-    """:func:`goal_configurations` for a sampling planner's query: records ``timing["ik"]``
-    (s) and ``info["ik_solutions"]`` (or ``info["error"]``); None when the goal has no IK
-    solution before the deadline (the planner then answers "no_ik")."""
+def solve_goal_ik(world: World, query: PlanQuery, n_ik: int, timing: dict[str, float],
+                  info: dict[str, object]) -> Array | None:
+    """Goal configurations (n, K) for a sampling planner's query: ``goal.q``, or up to ``n_ik``
+    collision-free (fast checker) IK solutions of the goal pose from the world's goal
+    resolver, nearest the start first. Records ``timing["ik"]`` (s) and
+    ``info["ik_solutions"]`` (or ``info["error"]``); None when the goal has no IK solution
+    before the deadline (the planner then answers "no_ik")."""
     t0 = query.t0
-    try:
-        goals = goal_configurations(world, query.goal, n_ik, rng, query.deadline)
-    except IKError as e:
-        timing["ik"] = time.perf_counter() - t0
-        info["error"] = str(e)
-        return None
+    if query.goal.q is not None:
+        goals = query.goal.q[None, :]
+    else:
+        found = world.goal_ik.resolve(query.goal, n=n_ik, near=query.q_start,
+                                      deadline=query.deadline)
+        if len(found) == 0:
+            timing["ik"] = time.perf_counter() - t0
+            info["error"] = f"goal pose: {found.reason}"
+            return None
+        goals = found.Q
     timing["ik"] = time.perf_counter() - t0
     info["ik_solutions"] = len(goals)
     return goals

@@ -117,7 +117,7 @@ class LazyPRM(PlannerBase):
             return PlanResult(path is not None, path, status, time.perf_counter() - t0,
                               timing, info=info)
 
-        goals = solve_goal_ik(self.world, query, cfg.n_ik, self.rng, timing, info)
+        goals = solve_goal_ik(self.world, query, cfg.n_ik, timing, info)
         if goals is None:
             return done(PlanStatus.TIMEOUT if query.expired() else PlanStatus.NO_IK)
         if query.expired():

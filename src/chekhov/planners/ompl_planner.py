@@ -179,7 +179,7 @@ class OmplPlanner(PlannerBase):
             return PlanResult(path is not None, path, status, time.perf_counter() - t0,
                               timing, info=info)
 
-        goals = solve_goal_ik(self.world, query, self.n_ik, self.rng, timing, info)
+        goals = solve_goal_ik(self.world, query, self.n_ik, timing, info)
         if goals is None:
             return done(PlanStatus.TIMEOUT if query.expired() else PlanStatus.NO_IK)
         if query.expired():

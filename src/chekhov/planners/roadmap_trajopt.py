@@ -255,10 +255,9 @@ class RoadmapTrajOpt(PlannerBase):
         if goal.q is not None:
             return goal.q
         assert goal.T_world_ee is not None
-        Q, _ = self.seeder.goal_configurations(goal.T_world_ee, deadline=query.deadline)
-        if len(Q) == 0:
-            return None
-        return np.asarray(Q[int(np.argmin(np.linalg.norm(Q - query.q_start, axis=1)))])
+        Q, _ = self.seeder.goal_configurations(goal.T_world_ee, deadline=query.deadline,
+                                               near=query.q_start)
+        return Q[0] if len(Q) else None
 
     def _straight_line(self, run: _Run, q_goal: Array, roadmap_status: PlanStatus | None,
                        seed_info: dict[str, object], budget_s: float) -> PlanResult:

@@ -10,14 +10,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from chekhov.collision.distance_terms import TrajectoryDistances
-from chekhov.errors import ChekhovError
+from chekhov.errors import ChekhovError, IKError
 from chekhov.planners.base import Planner, PlannerBase, PlanResult
 from chekhov.planners.query import PlanQuery
 from chekhov.planners.status import PlanStatus, Stage, StageReport
-from chekhov.robot.chain_kinematics import ChainKinematics
 from chekhov.robot.goal import Goal
 from chekhov.trajopt.config import TrajOptConfig
-from chekhov.trajopt.problem import build_trajopt, goal_configuration, straight_line_seed
+from chekhov.trajopt.problem import build_trajopt, straight_line_seed
 from chekhov.trajopt.result import TrajOptResult
 from chekhov.trajopt.solver import solve_trajopt
 from chekhov.world import World
@@ -36,34 +35,19 @@ class TrajOptPlanner(PlannerBase):
         self.config = config if config is not None else TrajOptConfig()
         self.name = name
         self._distances = TrajectoryDistances(world.fast)
-        try:
-            self._kinematics: ChainKinematics | None = ChainKinematics.from_robot(world.robot)
-        except ChekhovError:
-            self._kinematics = None  # not a serial revolute chain: pinocchio IK
 
-    def goal_configuration(self, q_start: Array, goal: Goal, n_seeds: int = 32,
-                           n_solutions: int = 6, deadline: float = math.inf) -> Array:
+    def goal_configuration(self, q_start: Array, goal: Goal, n_solutions: int = 6,
+                           deadline: float = math.inf) -> Array:
         """The goal configuration, or for a pose goal the collision-free IK solution nearest
-        q_start: numba damped least squares from q_start and random seeds, stopping after
-        ``n_solutions`` converge; nothing new starts after ``deadline`` (``perf_counter``
-        value, s). Raises ChekhovError when none is found."""
-        if goal.q is not None or self._kinematics is None:
-            return goal_configuration(self.world, q_start, goal, deadline=deadline)
-        assert goal.T_world_ee is not None
-        rng = np.random.default_rng(0)  # the same answer for the same query, every time
-        for round_ in range(3):
-            if round_ and time.perf_counter() > deadline:
-                break
-            seeds = np.vstack([q_start, self.world.robot.sample_uniform(rng, n_seeds)])
-            Q, ok = self._kinematics.solve(goal.T_world_ee, seeds, stop_after=n_solutions)
-            Q = Q[ok]
-            Q = Q[self.world.fast.valid(Q)] if len(Q) else Q
-            if len(Q):
-                return Q[int(np.argmin(np.linalg.norm(Q - q_start, axis=1)))]
-        if time.perf_counter() > deadline:
-            raise ChekhovError("goal pose: no collision-free IK solution before the time limit")
-        # the slower, thorough search
-        return goal_configuration(self.world, q_start, goal, deadline=deadline)
+        q_start among up to ``n_solutions`` (the world's goal resolver); nothing new starts
+        after ``deadline`` (``perf_counter`` value, s). Raises ChekhovError when none is
+        found."""
+        if goal.q is not None:
+            return goal.q
+        try:
+            return self.world.goal_ik.nearest(goal, q_start, n=n_solutions, deadline=deadline)
+        except IKError as e:
+            raise ChekhovError(f"goal pose: {e}") from e
 
     def _plan(self, query: PlanQuery) -> PlanResult:
         t0, q_start, goal = query.t0, query.q_start, query.goal

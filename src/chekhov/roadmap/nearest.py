@@ -92,32 +92,3 @@ def nearest_poses(positions: NearestNodes, rotations: Array, T: Array, k: int, n
     T = np.asarray(T, dtype=np.float64)
     return _nearest_poses(positions.points_T, rotations, np.ascontiguousarray(T[:3, 3]),
                           np.ascontiguousarray(T[:3, :3]), int(k), int(n), float(w_rot))
-
-
-@njit(cache=True)
-def _distinct(Q, min_dist, n):  # pragma: no cover - compiled
-    keep = np.empty(Q.shape[0], dtype=np.int64)
-    m = 0
-    for i in range(Q.shape[0]):
-        ok = True
-        for j in range(m):
-            s = 0.0
-            for a in range(Q.shape[1]):
-                t = Q[i, a] - Q[keep[j], a]
-                s += t * t
-            if s < min_dist * min_dist:
-                ok = False
-                break
-        if ok:
-            keep[m] = i
-            m += 1
-            if m == n:
-                break
-    return keep[:m]
-
-
-def distinct_rows(Q: Array, min_dist: float, n: int) -> Array:
-    """The first rows of Q (M, K), in order, at least ``min_dist`` apart from every row kept
-    before them (Euclidean); at most n."""
-    Q = np.ascontiguousarray(Q, dtype=np.float64)
-    return Q[_distinct(Q, float(min_dist), int(n))]

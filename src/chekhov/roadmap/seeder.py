@@ -15,11 +15,11 @@ from chekhov.roadmap.connect import Connection, Connector
 from chekhov.roadmap.errors import RoadmapMismatchError
 from chekhov.roadmap.graph import Roadmap
 from chekhov.roadmap.kpaths import KShortestPaths
-from chekhov.roadmap.nearest import NearestNodes, distinct_rows, nearest_poses
+from chekhov.roadmap.nearest import NearestNodes, nearest_poses
 from chekhov.roadmap.search import astar, path_edges, warm_up
 from chekhov.roadmap.validity import INVALID, RoadmapValidity
-from chekhov.robot.chain_kinematics import ChainKinematics
 from chekhov.robot.goal import Goal
+from chekhov.robot.goal_ik import GoalIKConfig, GoalResolver
 from chekhov.world import World
 
 Array = NDArray[np.float64]
@@ -125,7 +125,10 @@ class RoadmapSeeder:
         self.config = config or SeederConfig()
         self.resolution = (self.config.resolution if self.config.resolution is not None
                            else roadmap.config.resolution)
-        self.kin = ChainKinematics.from_robot(world.robot)
+        cfg = self.config
+        self.goal_ik = GoalResolver(world.robot, world.fast.valid, GoalIKConfig(
+            random_seeds=cfg.ik_random_seeds, random_rounds=cfg.ik_random_rounds,
+            thorough=False))
         self._ee_position = NearestNodes(roadmap.ee_position)
         self._ee_rotation = np.ascontiguousarray(roadmap.ee_rotation, dtype=np.float64)
         self.validity = RoadmapValidity(roadmap, world.fast, self.resolution)
@@ -134,7 +137,7 @@ class RoadmapSeeder:
         self.connector = Connector(world, roadmap, self.validity, self.config, self.resolution,
                                    P, distal)
         warm_up()
-        self.kin.solve(np.eye(4), roadmap.nodes[:1], max_iterations=1)  # compile / load
+        self.goal_ik.warmup()
         # compile (cold cache) or load every kernel of a query now, not in the first timed
         # one: a pose query between two nodes (whose ends normally connect directly)
         if roadmap.n_nodes >= 2:
@@ -143,37 +146,21 @@ class RoadmapSeeder:
 
     # --- goal ---------------------------------------------------------------------------
     def goal_configurations(self, T_world_ee: Array, n: int | None = None,
-                            deadline: float = math.inf) -> tuple[Array, str]:
+                            deadline: float = math.inf, near: Array | None = None
+                            ) -> tuple[Array, str]:
         """Up to n (default ``n_goal_ik``) distinct collision-free IK solutions (n, K) of a
-        goal pose, seeded from the roadmap nodes whose end-effector poses are nearest (random
-        restart rounds only before ``deadline``, a perf_counter value); (empty, reason) on
-        failure."""
-        cfg = self.config
-        n = cfg.n_goal_ik if n is None else n
-        n_seeds = max(cfg.ik_seeds, n)
+        goal pose (the goal resolver, seeded from the roadmap nodes whose end-effector poses
+        are nearest; random restart rounds only before ``deadline``, a perf_counter value),
+        sorted by distance to ``near`` when given; (empty, reason) on failure."""
+        n = self.config.n_goal_ik if n is None else n
+        n_seeds = max(self.config.ik_seeds, n)
         T = np.asarray(T_world_ee, dtype=float)
         # the 4·n_seeds nearest end-effector positions, ranked by position (m) + 0.2 · angle
         seeds = self.roadmap.nodes[nearest_poses(self._ee_position, self._ee_rotation, T,
                                                  4 * n_seeds, n_seeds)]
-        sols = self._free_ik(T, seeds, n)
-        rounds = 0
-        while len(sols) == 0 and rounds < cfg.ik_random_rounds \
-                and time.perf_counter() < deadline:
-            if rounds == 0:
-                rng = np.random.default_rng(0)
-            rounds += 1
-            sols = self._free_ik(T, self.world.robot.sample_uniform(rng, cfg.ik_random_seeds),
-                                 n)
-        if len(sols) == 0:
-            return sols, (f"no collision-free IK solution from {cfg.ik_seeds} roadmap seeds "
-                          f"and {rounds * cfg.ik_random_seeds} random ones")
-        return distinct_rows(sols, 0.1, n), ""
-
-    def _free_ik(self, T: Array, seeds: Array, n: int) -> Array:
-        """Converged, collision-free solutions from the seeds (stops after n)."""
-        Q, ok = self.kin.solve(T, seeds, stop_after=n)
-        Q = Q[ok]
-        return Q[self.world.fast.valid(Q)] if len(Q) else Q
+        found = self.goal_ik.resolve(Goal.pose(T), n=n, seeds=seeds, near=near,
+                                     deadline=deadline)
+        return found.Q, found.reason
 
     # --- query --------------------------------------------------------------------------
     def seed(self, q_start: Array, goal: Goal) -> SeedResult:

@@ -19,7 +19,6 @@ from chekhov.collision.distance_terms import TrajectoryDistances
 from chekhov.errors import ChekhovError, IKError, RobotError
 from chekhov.paths import resample_path
 from chekhov.robot.goal import Goal
-from chekhov.robot.ik import solve_ik
 from chekhov.trajopt.config import TrajOptConfig
 from chekhov.world import World
 
@@ -262,22 +261,17 @@ def straight_line_seed(q_start: Array, q_goal: Array, n_waypoints: int) -> Array
     return (1 - t) * np.asarray(q_start, dtype=float) + t * np.asarray(q_goal, dtype=float)
 
 
-def goal_configuration(world: World, q_start: Array, goal: Goal, n_solutions: int = 4,
-                       rng: np.random.Generator | None = None, deadline: float = math.inf
+def goal_configuration(world: World, q_start: Array, goal: Goal, deadline: float = math.inf
                        ) -> Array:
     """A configuration for the goal: the configuration itself, or the collision-free IK
-    solution of the goal pose closest to q_start (no IK restart after ``deadline``, a
-    ``time.perf_counter()`` value). Raises TrajOptError when there is none."""
+    solution of the goal pose nearest q_start (``world.goal_ik``; no IK restart after
+    ``deadline``, a ``time.perf_counter()`` value). Raises TrajOptError when there is none."""
     if goal.q is not None:
         return goal.q
-    assert goal.T_world_ee is not None
     try:
-        Q = solve_ik(world.robot, goal.T_world_ee, n_solutions, q_seed=q_start,
-                     rng=rng if rng is not None else np.random.default_rng(0),
-                     accept=world.fast.is_valid, deadline=deadline)
+        return world.goal_ik.nearest(goal, q_start, deadline=deadline)
     except IKError as e:
         raise TrajOptError(f"goal pose: {e}") from e
-    return Q[int(np.argmin(np.linalg.norm(Q - q_start, axis=1)))]
 
 
 def build_trajopt(world: World, q_start: Array, goal: Goal, seed: Array | None = None,

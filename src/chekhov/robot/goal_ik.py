@@ -1,0 +1,192 @@
+"""The one goal resolver: a :class:`~chekhov.robot.goal.Goal` → the joint configurations that
+meet it, for every planner.
+
+A configuration goal is its configuration. A pose goal is solved by damped least squares from
+the seeds a caller knows to be good (the start, the roadmap nodes whose end-effector poses are
+nearest), then from random restarts, compiled (:class:`ChainKinematics`, ~10–30 µs a solve) for
+a serial revolute chain; when that finds nothing (or the chain is not serial) pinocchio's
+thorough :func:`~chekhov.robot.ik.solve_ik` has the rest of the time. Only solutions the
+caller's ``valid`` accepts (collision-free, by the fast checker) count.
+
+Random restarts draw from ``np.random.default_rng(seed)`` made afresh for every call, so the same
+query gets the same goal configurations every time.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from chekhov.errors import ChekhovError, IKError
+from chekhov.robot.chain_kinematics import ChainKinematics
+from chekhov.robot.goal import Goal
+from chekhov.robot.ik import solve_ik
+from chekhov.robot.robot import Robot
+
+Array = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+
+@dataclass(frozen=True)
+class GoalIKConfig:
+    """Settings of :class:`GoalResolver`.
+
+    Attributes:
+        random_seeds: random restarts per compiled round. random_rounds: compiled rounds of
+            random restarts after the caller's seeds (none start after the deadline).
+        min_separation: rad, solutions closer than this (joint-space norm) are one.
+        thorough: when the compiled rounds find nothing, pinocchio's ``solve_ik`` (slower,
+            more restarts) until the deadline.
+        seed: seed of the random restarts (a fresh generator per call).
+    """
+
+    random_seeds: int = 32
+    random_rounds: int = 4
+    min_separation: float = 0.1
+    thorough: bool = True
+    seed: int = 0
+
+
+@dataclass(frozen=True, eq=False)
+class GoalConfigurations:
+    """What :meth:`GoalResolver.resolve` found.
+
+    Attributes:
+        Q: (n, K) rad, distinct valid configurations meeting the goal (n = 0: none).
+        reason: why there are none ("" when there are).
+    """
+
+    Q: Array
+    reason: str
+
+    def __len__(self) -> int:
+        return len(self.Q)
+
+    def nearest(self, q: Array) -> Array:
+        """The configuration nearest q (K,) in joint space; IKError when there is none."""
+        if len(self.Q) == 0:
+            raise IKError(self.reason)
+        return self.Q[int(np.argmin(np.linalg.norm(self.Q - q, axis=1)))]
+
+
+class GoalResolver:
+    """Goal configurations of one robot, accepted by ``valid`` (a batch test (N, K) → (N,) bool,
+    e.g. ``FastChecker.valid``)."""
+
+    def __init__(self, robot: Robot, valid: Callable[[Array], BoolArray],
+                 config: GoalIKConfig | None = None) -> None:
+        self.robot = robot
+        self.valid = valid
+        self.config = config if config is not None else GoalIKConfig()
+        try:
+            self.kinematics: ChainKinematics | None = ChainKinematics.from_robot(robot)
+        except ChekhovError:
+            self.kinematics = None  # not a serial revolute chain: pinocchio only
+
+    def warmup(self) -> None:
+        """Compile (or load) the IK kernel now rather than in the first timed query."""
+        if self.kinematics is not None:
+            self.kinematics.solve(np.eye(4), self.robot.lower[None], max_iterations=1)
+
+    def resolve(self, goal: Goal, *, n: int, seeds: Array | None = None,
+                near: Array | None = None, deadline: float = math.inf) -> GoalConfigurations:
+        """Up to n distinct valid configurations meeting ``goal``.
+
+        Args:
+            seeds: (M, K) rad, tried first, in order. near: (K,) rad; when given, tried first
+                of all and the result is sorted by joint distance to it (else seed order).
+            deadline: ``time.perf_counter()`` value, s; no restart round begins after it.
+        """
+        if goal.q is not None:
+            q = self.robot.check_configuration(goal.q, "goal configuration")
+            ok = bool(self.robot.within_limits(q)[0] and self.valid(q[None])[0])
+            if ok:
+                return GoalConfigurations(q[None], "")
+            return self._none("the goal configuration is in collision or outside the joint "
+                              "limits")
+        assert goal.T_world_ee is not None
+        T = goal.T_world_ee
+        shoulder, reach = self.robot.reach
+        dist = float(np.linalg.norm(T[:3, 3] - shoulder))
+        if dist > reach:
+            return self._none(f"position {np.round(T[:3, 3], 3).tolist()} is {dist:.3f} m from "
+                              f"the arm's first joint, beyond its reach of {reach:.3f} m")
+        first = [np.asarray(near, dtype=float)[None]] if near is not None else []
+        if seeds is not None and len(seeds):
+            first.append(np.asarray(seeds, dtype=float))
+        Q, tried = self._compiled(T, first, n, deadline)
+        if len(Q) == 0 and self.config.thorough and time.perf_counter() < deadline:
+            Q, why = self._thorough(T, n, near, deadline)
+            if len(Q) == 0:
+                return self._none(why)
+        elif len(Q) == 0:
+            return self._none(f"no valid IK solution from {tried} seeds"
+                              + (" (time limit reached)" if time.perf_counter() >= deadline
+                                 else ""))
+        Q = distinct_rows(Q, self.config.min_separation, n)
+        if near is not None:
+            Q = Q[np.argsort(np.linalg.norm(Q - near, axis=1), kind="stable")]
+        return GoalConfigurations(Q, "")
+
+    def nearest(self, goal: Goal, q_near: Array, *, n: int = 6,
+                deadline: float = math.inf) -> Array:
+        """The valid goal configuration nearest q_near (K,) among up to n found; raises
+        :class:`IKError` (with the reason) when there is none."""
+        return self.resolve(goal, n=n, near=q_near, deadline=deadline).nearest(q_near)
+
+    def _none(self, reason: str) -> GoalConfigurations:
+        return GoalConfigurations(np.empty((0, self.robot.dof)), reason)
+
+    def _compiled(self, T: Array, first: list[Array], n: int, deadline: float
+                  ) -> tuple[Array, int]:
+        """Valid solutions from the caller's seeds, then random rounds; (solutions, seeds
+        tried)."""
+        if self.kinematics is None:
+            return np.empty((0, self.robot.dof)), 0
+        cfg = self.config
+        rng: np.random.Generator | None = None
+        rounds = [np.vstack(first)] if first else []
+        tried = 0
+        sols = np.empty((0, self.robot.dof))
+        for r in range(len(rounds) + cfg.random_rounds):
+            if r and time.perf_counter() >= deadline:
+                break
+            if r < len(rounds):
+                S = rounds[r]
+            else:
+                rng = rng if rng is not None else np.random.default_rng(cfg.seed)
+                S = self.robot.sample_uniform(rng, cfg.random_seeds)
+            tried += len(S)
+            Q, ok = self.kinematics.solve(T, S, stop_after=n)
+            Q = Q[ok]
+            sols = Q[self.valid(Q)] if len(Q) else Q
+            if len(sols):
+                break
+        return sols, tried
+
+    def _thorough(self, T: Array, n: int, near: Array | None, deadline: float
+                  ) -> tuple[Array, str]:
+        try:
+            Q = solve_ik(self.robot, T, n, q_seed=near,
+                         rng=np.random.default_rng(self.config.seed),
+                         accept=lambda q: bool(self.valid(q[None])[0]), deadline=deadline)
+        except IKError as e:
+            return np.empty((0, self.robot.dof)), str(e)
+        return Q, ""
+
+
+def distinct_rows(Q: Array, min_dist: float, n: int) -> Array:
+    """The first rows of Q (M, K), in order, each at least ``min_dist`` rad from those kept
+    before it; at most n."""
+    keep: list[int] = []
+    for i in range(len(Q)):
+        if all(np.linalg.norm(Q[i] - Q[j]) >= min_dist for j in keep):
+            keep.append(i)
+            if len(keep) == n:
+                break
+    return Q[keep]
