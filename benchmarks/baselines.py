@@ -6,7 +6,8 @@
 Per scene and planner: cases, failure_rate, median_ms / mean_ms (wall time of ``plan``, IK
 included; ``ik_ms`` its IK share), mean_path_length_rad (solved cases only), statuses. The cases
 are ``generate_cases(world, N, seed)`` without a solvability pass. Every planner uses the fast
-checker at the same resolution (0.02 rad); RRT* and PRM* run to the limit. Not the full
+checker at the same resolution (0.02 rad); RRT* and PRM* run to the limit. Planners come from
+the registry (``chekhov.planners.registry.make_planner``), as in ``chekhov bench``. Not the full
 benchmark (that is ``chekhov bench``), a quick smoke figure.
 """
 
@@ -21,31 +22,35 @@ import argparse
 import json
 import time
 from collections import Counter
+from functools import partial
 
 import numpy as np
 
-from chekhov.bench import generate_cases
-from chekhov.planners.base import Planner
-from chekhov.planners.lazy_prm import LazyPRM, LazyPRMConfig
-from chekhov.planners.ompl_planner import PLANNERS, OmplPlanner
+from chekhov.cases import generate_cases
+from chekhov.errors import ChekhovError
+from chekhov.planners.registry import canonical_planner_name, make_planner
+from chekhov.roadmap.io import load_or_build_roadmap
 from chekhov.scene.io import builtin_scenes
 from chekhov.world import World
 
-ALL = [*PLANNERS, "RRTConnect+simplify", "LazyPRM"]
+# the registry's sampling-based planners (chekhov.planners.registry); --planners takes any
+# registry name or alias
+ALL = ["RRTConnect", "RRT", "RRT*", "PRM*", "LazyPRM"]
 
 
-def make_planner(world: World, name: str, resolution: float, seed: int) -> Planner:
-    if name == "LazyPRM":
-        return LazyPRM(world, LazyPRMConfig(resolution=resolution), seed=seed)
-    base, _, extra = name.partition("+")
-    return OmplPlanner(world, base, resolution=resolution, simplify=extra == "simplify",
-                       seed=seed)
+def planner_name(text: str) -> str:
+    """The registry name of ``text``, as an argparse type (an unknown name: exit status 2)."""
+    try:
+        return canonical_planner_name(text)
+    except ChekhovError as e:
+        raise argparse.ArgumentTypeError(str(e)) from e
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenes", nargs="+", default=builtin_scenes())
-    ap.add_argument("--planners", nargs="+", default=ALL, choices=ALL)
+    ap.add_argument("--planners", nargs="+", default=ALL, type=planner_name,
+                    help=f"registry planner names (default {' '.join(ALL)})")
     ap.add_argument("--cases", type=int, default=20)
     ap.add_argument("--time-limit", type=float, default=1.0, help="s per plan call")
     ap.add_argument("--resolution", type=float, default=0.02, help="rad")
@@ -60,7 +65,8 @@ def main() -> None:
         world.fast  # noqa: B018 - build the checker before timing
         cases = generate_cases(world, args.cases, args.seed)
         for name in args.planners:
-            planner = make_planner(world, name, args.resolution, args.seed)
+            planner = make_planner(name, world, partial(load_or_build_roadmap, world),
+                                   resolution=args.resolution, seed=args.seed)
             times, ik, lengths, status = [], [], [], Counter()
             for i in range(len(cases)):
                 r = planner.plan(cases.q_start[i], cases.goal(i), args.time_limit)

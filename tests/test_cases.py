@@ -113,6 +113,14 @@ def test_cached_cases_generate_once(world, tmp_path):
     assert len(list(tmp_path.iterdir())) == 1
 
 
+def test_cli_generate_takes_registry_planners(tmp_path, capsys):
+    """The solvability pass's planners come from the registry (names, aliases, +TrajOpt)."""
+    out = tmp_path / "cases.npz"
+    assert main(["cases", "generate", "tabletop_pole", "--n", "2", "--out", str(out),
+                 "--planners", "lazyprm", "TrajOpt", "--solvability-limit", "0.5"]) == 0
+    assert "solvability pass (LazyPRM, TrajOpt, 0.5 s each)" in capsys.readouterr().out
+
+
 def test_cli_generate_and_info(tmp_path, capsys):
     out = tmp_path / "cases.npz"
     assert main(["cases", "generate", "tabletop_pole", "--n", "3", "--seed", "2",

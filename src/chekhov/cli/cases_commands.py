@@ -23,7 +23,7 @@ MAX_CASES = 1_000_000
 def _check_generate_args(args: argparse.Namespace) -> Path:
     """Check the scene, the planners and the output file before any work; returns the output
     path (default ``SCENE-sSEED-nN.npz``). Fills in the solvability defaults."""
-    from chekhov.planners.ompl_planner import _ALIASES, PLANNERS
+    from chekhov.planners.registry import canonical_planner_name
     from chekhov.scene.io import load_scene
 
     scene = load_scene(args.scene)
@@ -32,17 +32,17 @@ def _check_generate_args(args: argparse.Namespace) -> Path:
                             ("--solvability-limit", args.solvability_limit)):
             if value is not None:
                 raise ChekhovError(f"{flag} sets the solvability pass: not with --no-solvability")
-    args.planners = args.planners or ["RRTConnect"]
     args.solvability_limit = args.solvability_limit or 1.0
-    kinds = []
-    for name in args.planners:
-        kind = _ALIASES.get(name.lower())
-        if kind is None:
-            raise ChekhovError(f"--planners: unknown OMPL planner '{name}'; available: "
-                               f"{', '.join(PLANNERS)}")
-        if kind in kinds:
-            raise ChekhovError(f"--planners: {kind} is listed twice in {args.planners}")
-        kinds.append(kind)
+    names: list[str] = []
+    for given in args.planners or ["RRTConnect"]:
+        try:
+            name = canonical_planner_name(given)
+        except ChekhovError as e:
+            raise ChekhovError(f"--planners: {e}") from e
+        if name in names:
+            raise ChekhovError(f"--planners: {name} is listed twice in {args.planners}")
+        names.append(name)
+    args.planners = names
     out = args.out if args.out else f"{scene.name}-s{args.seed}-n{args.n}.npz"
     return checks.output_file(out, "--out")
 
@@ -50,7 +50,8 @@ def _check_generate_args(args: argparse.Namespace) -> Path:
 def _cmd_generate(args: argparse.Namespace) -> int:
     from chekhov.bench.solvability import solvability_pass
     from chekhov.cases import generate_cases
-    from chekhov.planners.ompl_planner import OmplPlanner
+    from chekhov.planners.registry import make_planner
+    from chekhov.roadmap.io import load_or_build_roadmap
     from chekhov.world import World
 
     out = _check_generate_args(args)
@@ -60,7 +61,8 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     print(f"generated {len(cases)} cases for '{world.scene.name}' (seed {args.seed}) in "
           f"{time.perf_counter() - t0:.1f} s")
     if not args.no_solvability:
-        planners = [OmplPlanner(world, name, seed=args.seed) for name in args.planners]
+        planners = [make_planner(name, world, lambda: load_or_build_roadmap(world),
+                                 seed=args.seed) for name in args.planners]
 
         def progress(done: int, total: int) -> None:
             if sys.stderr.isatty() and (done % 10 == 0 or done == total):
@@ -115,7 +117,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="time limit per planner and case of the solvability pass, s > 0 "
                         "(default 1)")
     g.add_argument("--planners", nargs="+", metavar="NAME",
-                   help="OMPL planners of the solvability pass (default RRTConnect)")
+                   help="planners of the solvability pass, registry names as for `chekhov "
+                        "bench` (default RRTConnect)")
     g.add_argument("--no-solvability", action="store_true",
                    help="skip the solvability pass (the cases are then exactly "
                         "generate_cases(n, seed))")
