@@ -257,3 +257,25 @@ def test_progress_logs_every_tenth_and_at_least_every_interval_off_a_terminal():
     for _ in range(100):
         bar.update(failed=True)
     assert len(out.getvalue().splitlines()) == 100 and "(100 failed)" in out.getvalue()
+
+
+def test_fallback_to_seed_is_read_from_the_stages():
+    """The record's fallback flag comes from the typed stages, not from ``info``."""
+    from chekhov.bench.worker import fell_back_to_seed
+    from chekhov.planners.result import PlanResult
+    from chekhov.planners.status import PlanStatus, Stage, StageReport
+
+    def result(seed_from, *stages):
+        reports = tuple(StageReport(s, PlanStatus.SOLVED, 0.0) for s in stages)
+        return PlanResult(True, np.zeros((2, 7)), PlanStatus.SOLVED, 0.0, stages=reports,
+                          seed_from=seed_from, info={"fallback_to_seed": "ignored"})
+
+    assert fell_back_to_seed(result(None, Stage.SEARCH)) is None        # no TrajOpt stage
+    assert fell_back_to_seed(result(Stage.ROADMAP_SEED, Stage.ROADMAP_SEED, Stage.OPTIMISE,
+                                    Stage.FALLBACK)) is True           # the seed returned
+    assert fell_back_to_seed(result(Stage.ROADMAP_SEED, Stage.ROADMAP_SEED,
+                                    Stage.OPTIMISE)) is False
+    assert fell_back_to_seed(result(Stage.FALLBACK, Stage.ROADMAP_SEED,
+                                    Stage.FALLBACK)) is False          # straight-line TrajOpt
+    assert fell_back_to_seed(result(Stage.STRAIGHT_LINE, Stage.IK, Stage.STRAIGHT_LINE,
+                                    Stage.OPTIMISE)) is False

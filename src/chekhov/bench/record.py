@@ -11,6 +11,9 @@ Array = NDArray[np.float64]
 
 # Planner statuses that mean "the TrajOpt stage ran and its trajectory was rejected".
 TRAJOPT_FAILED = frozenset({"collision", "infeasible"})
+# Statuses of a run that could not be run (the worker caught an exception): its info names the
+# stage ("goal", "plan", "check") and the error.
+RUN_ERRORS = frozenset({"case_error", "crash"})
 
 
 @dataclass(frozen=True, eq=False)
@@ -38,7 +41,11 @@ class RunRecord:
         seed_found: the seed stage produced a path; None for planners without one.
         trajopt_status: TrajOpt's own status ("converged", "iteration_limit", "exact_clear",
             "infeasible", "collision"); None when TrajOpt did not run.
-        fallback_to_seed: Roadmap+TrajOpt returned its (exactly checked) seed.
+        fallback_to_seed: the planner returned its (exactly checked) seed, TrajOpt's
+            trajectory rejected (Roadmap+TrajOpt); None when no TrajOpt stage ran
+            (:func:`chekhov.bench.worker.fell_back_to_seed`).
+        seed_stage_of: for a seed planner X's run recorded from X+TrajOpt's seed stage, that
+            planner's name (its planning time is counted once); None otherwise.
         info: scalar extras of ``PlanResult.info`` (iterations, counts, error text).
         worker: "host:pid" of the process that ran it.
     """
@@ -63,6 +70,7 @@ class RunRecord:
     fallback_to_seed: bool | None = None
     info: dict[str, object] = field(default_factory=dict)
     worker: str = ""
+    seed_stage_of: str | None = None
 
     @property
     def key(self) -> tuple[str, str, int]:

@@ -36,6 +36,7 @@ from chekhov.bench.config import BenchConfig
 from chekhov.bench.database import BenchDatabase
 from chekhov.bench.executors import run_tasks
 from chekhov.bench.progress import ProgressBar
+from chekhov.bench.record import RUN_ERRORS
 from chekhov.bench.registry import (
     PlannerSpec,
     planner_settings,
@@ -195,12 +196,12 @@ def _execute(db: BenchDatabase, config: BenchConfig, plan: _Plan, tasks: list[Ru
     ran = lost = seen = 0
     try:
         for rec in run_tasks(source, config):
-            if "stage" in rec.info:
+            if rec.status in RUN_ERRORS:
                 _log.warning("bench: %s on case %d of '%s' could not be run (%s in stage "
                              "%s): %s; recorded as that run's failure", rec.planner,
                              rec.case_index, rec.scene, rec.status, rec.info["stage"],
                              rec.info.get("error"))
-            shared = "seed_stage_of" in rec.info  # its planning time is counted once
+            shared = rec.seed_stage_of is not None  # its planning time is counted once
             seconds = (0.0 if shared else rec.time_s) + rec.exact_check_s
             pid = plan.planner_ids[(rec.scene, rec.planner)]
             if db.insert_run(plan.exp_ids[rec.scene], pid, rec, seconds) is None:

@@ -8,6 +8,7 @@ import os
 import socket
 import time
 import traceback
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -100,8 +101,9 @@ class BenchWorker:
             seed_run = getattr(planner, "last_seed_result", None)
             base = seed_planner_name(task.planner)
             if task.records_seed_run and base is not None and seed_run is not None:
-                records.append(self._record(world, task, base, seed_run,
-                                            {"seed_stage_of": task.planner}))
+                records.append(replace(self._record(world, task, base, seed_run,
+                                                    {"seed_stage_of": task.planner}),
+                                       seed_stage_of=task.planner))
             return records
         except Exception as e:  # one bad case is a result, not the end of the benchmark
             return self._failed(task, stage, e,
@@ -122,7 +124,8 @@ class BenchWorker:
         shared = [{}, {"seed_stage_of": task.planner}]   # its time is counted once
         return [RunRecord(task.scene, name, task.case_index, task.case_hash, solved=False,
                           status=status, time_s=time_s,
-                          info={**info, "planner": name, **extra}, worker=self.name)
+                          info={**info, "planner": name, **extra}, worker=self.name,
+                          seed_stage_of=extra.get("seed_stage_of"))
                 for name, extra in zip(names, shared, strict=False)]
 
     def _record(self, world: World, task: RunTask, name: str, r: PlanResult,
@@ -143,8 +146,9 @@ class BenchWorker:
                 timed = {"timing_error": str(e)}
         seed_path, seed_found = _seed_of(r)
         seed_time = float(r.timing_s["seed"]) if "seed" in r.timing_s else float("nan")
+        # TrajOpt's own status string ("converged", "exact_clear", …): the typed result has
+        # only its PlanStatus, so the string is still read from info (recorded, not acted on)
         trajopt_status = r.info.get("trajopt_status")
-        fallback = r.info.get("fallback_to_seed")
         return RunRecord(
             scene=task.scene, planner=name, case_index=task.case_index,
             case_hash=task.case_hash, solved=path is not None, status=r.status,
@@ -154,7 +158,7 @@ class BenchWorker:
             seed_length=path_length(seed_path) if seed_path is not None else float("nan"),
             seed_time_s=seed_time, seed_found=seed_found,
             trajopt_status=str(trajopt_status) if trajopt_status is not None else None,
-            fallback_to_seed=bool(fallback) if fallback is not None else None,
+            fallback_to_seed=fell_back_to_seed(r),
             info={**scalar_items(r.info), **timed, **(extra_info or {})}, worker=self.name)
 
 
@@ -176,6 +180,18 @@ def reseed(planner: Any, seed: int) -> None:
     for p in (planner, getattr(planner, "seed_planner", None)):
         if p is not None and isinstance(getattr(p, "rng", None), np.random.Generator):
             p.rng = np.random.default_rng(seed)
+
+
+_TRAJOPT_STAGES = frozenset({Stage.STRAIGHT_LINE, Stage.OPTIMISE, Stage.RETRY, Stage.FALLBACK})
+
+
+def fell_back_to_seed(r: PlanResult) -> bool | None:
+    """Whether the answer is the seed itself, TrajOpt's trajectory having been rejected
+    (Roadmap + TrajOpt: a FALLBACK stage after a roadmap seed; its straight-line fallback is
+    a TrajOpt run, seeded from that stage); None when no TrajOpt stage ran."""
+    if not any(report.stage in _TRAJOPT_STAGES for report in r.stages):
+        return None
+    return r.seed_from == Stage.ROADMAP_SEED and r.stage(Stage.FALLBACK) is not None
 
 
 def _seed_of(r: PlanResult) -> tuple[np.ndarray | None, bool | None]:

@@ -93,9 +93,12 @@ class PlanView:
     def summary_markdown(self) -> str:
         """Timing breakdown, path length and status as a Markdown table."""
         r = self.result
-        rows = [("planner", self.planner), ("status", r.status + (
-            " (seed fallback)" if r.info.get("fallback_to_seed") else "")),
-            ("total", f"{1e3 * r.time_s:.1f} ms")]
+        # the seed itself returned: a FALLBACK stage after a roadmap seed (the straight-line
+        # fallback is seeded from its own stage)
+        seed_fallback = r.seed_from == Stage.ROADMAP_SEED and r.stage(Stage.FALLBACK) is not None
+        rows = [("planner", self.planner),
+                ("status", r.status + (" (seed fallback)" if seed_fallback else "")),
+                ("total", f"{1e3 * r.time_s:.1f} ms")]
         rows += [(f"· {k}", f"{1e3 * v:.1f} ms") for k, v in r.timing_s.items()]
         if self.timed is not None:
             rows.append(("motion duration", f"{self.timed.duration:.2f} s "
