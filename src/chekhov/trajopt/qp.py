@@ -71,7 +71,25 @@ class TrajOptQP:
         self.segment_capacity = cap_s.astype(np.int64)
         self._wp_t, self._wp_k = _term_index(self.waypoint_capacity)
         self._seg_t, self._seg_k = _term_index(self.segment_capacity)
-        # collision: one ≥ row and one slack per term
+        self._add_blocks(problem, xi)
+        n_z = self.n_x + self._n_slack
+        self.n_z = n_z
+        self.slack_coeff = np.concatenate(self._slack_coeff) if self._slack_coeff else \
+            np.zeros(0)
+        self._assemble_pattern()
+        self.P = _smoothness_hessian(problem, n_z)
+        self._solver: osqp.OSQP | None = None
+        self._last_ev: Evaluation | None = None
+        self.admm_iterations = 0
+        self._l = np.zeros(self.n_rows)
+        self._u = np.zeros(self.n_rows)
+
+    def _add_blocks(self, problem: TrajOptProblem, xi: IntArray) -> None:
+        """The row blocks of every penalised term: collision (one ≥ row and one slack per
+        term, within the capacities), goal pose, velocity / acceleration and torque limits.
+        ``xi`` (T, K): the column of each waypoint's joint."""
+        cfg = problem.config
+        T, K = xi.shape
         if len(self._wp_t):
             self._add("waypoint", xi[self._wp_t], 1, cfg.collision_coeff)
         if len(self._seg_t):
@@ -88,11 +106,11 @@ class TrajOptQP:
         if problem.has_torque and T > 2:
             win = np.concatenate([xi[:-2], xi[1:-1], xi[2:]], axis=1)  # (T-2, 3K)
             self._add("torque", np.repeat(win, K, axis=0), 2, cfg.torque_coeff)
-        n_z = self.n_x + self._n_slack
-        self.n_z = n_z
-        self.slack_coeff = np.concatenate(self._slack_coeff) if self._slack_coeff else \
-            np.zeros(0)
-        # assemble the pattern: identity rows (x, then slacks), then each block's rows
+
+    def _assemble_pattern(self) -> None:
+        """A's pattern: identity rows (x, then slacks), then each block's rows; the constant
+        values (identity, slack senses, finite-difference rows) filled in."""
+        n_z = self.n_z
         ident_rows = np.concatenate([np.arange(self.n_x), self._rows + np.arange(self._n_slack)])
         self.n_rows = self._rows + self._n_slack
         rows = [ident_rows]
@@ -115,34 +133,6 @@ class TrajOptQP:
                 v[:, :3] = [1.0, -2.0, 1.0]
             vals[n_z + b.value_offset:n_z + b.value_offset + v.size] = v.ravel()
         self._vals = vals
-        # smoothness Hessian, ½ xᵀ P x = Σ_t ||W (x_{t+1} - x_t)||², plus the proximal term
-        # ½ ρ ||x - x̄||² that regularises each step (ADMM converges far faster on a strongly
-        # convex QP; the merit model of the ratio test leaves it out). Upper triangle, CSC,
-        # built directly: column (t, j) holds (t-1, j) and its diagonal.
-        w2 = np.tile(2.0 * problem.weights**2, T)
-        deg = np.full(T * K, 2.0)
-        deg[:K] = deg[-K:] = 1.0
-        diag = deg * w2 + problem.config.proximal_weight
-        if T == 1:
-            diag = np.full(K, problem.config.proximal_weight)
-        has_up = np.arange(T * K) >= K
-        counts = np.concatenate([1 + has_up.astype(np.int64),
-                                 np.zeros(self._n_slack, dtype=np.int64)])
-        indptr = np.concatenate([[0], np.cumsum(counts)])
-        indices = np.empty(indptr[-1], dtype=np.int64)
-        data = np.empty(indptr[-1])
-        first = indptr[:-1][:T * K]
-        up = first[has_up]
-        cols_up = np.flatnonzero(has_up)
-        indices[up], data[up] = cols_up - K, -w2[cols_up]
-        dpos = first + has_up
-        indices[dpos], data[dpos] = np.arange(T * K), diag
-        self.P = sp.csc_matrix((data, indices, indptr), shape=(n_z, n_z))
-        self._solver: osqp.OSQP | None = None
-        self._last_ev: Evaluation | None = None
-        self.admm_iterations = 0
-        self._l = np.zeros(self.n_rows)
-        self._u = np.zeros(self.n_rows)
 
     def _add(self, name: str, var_cols: IntArray, rows_per_term: int, coeff: float) -> None:
         """Add a block of terms; each term gets one slack and ``rows_per_term`` rows (1: a ≥
@@ -304,3 +294,30 @@ def _term_index(capacity: IntArray) -> tuple[IntArray, IntArray]:
     t = np.repeat(np.arange(len(capacity), dtype=np.int64), capacity)
     starts = np.repeat(np.cumsum(capacity) - capacity, capacity)
     return t, np.arange(len(t), dtype=np.int64) - starts
+
+
+def _smoothness_hessian(problem: TrajOptProblem, n_z: int) -> sp.csc_matrix:
+    """P (n_z, n_z), upper triangle, CSC: the smoothness Hessian, ½ xᵀ P x = Σ_t ||W (x_{t+1} -
+    x_t)||², plus the proximal term ½ ρ ||x - x̄||² that regularises each step (ADMM converges
+    far faster on a strongly convex QP; the merit model of the ratio test leaves it out).
+    Built directly: column (t, j) holds (t-1, j) and its diagonal; slack columns are empty."""
+    T, K = problem.n_waypoints, problem.dof
+    w2 = np.tile(2.0 * problem.weights**2, T)
+    deg = np.full(T * K, 2.0)
+    deg[:K] = deg[-K:] = 1.0
+    diag = deg * w2 + problem.config.proximal_weight
+    if T == 1:
+        diag = np.full(K, problem.config.proximal_weight)
+    has_up = np.arange(T * K) >= K
+    counts = np.concatenate([1 + has_up.astype(np.int64),
+                             np.zeros(n_z - T * K, dtype=np.int64)])
+    indptr = np.concatenate([[0], np.cumsum(counts)])
+    indices = np.empty(indptr[-1], dtype=np.int64)
+    data = np.empty(indptr[-1])
+    first = indptr[:-1][:T * K]
+    up = first[has_up]
+    cols_up = np.flatnonzero(has_up)
+    indices[up], data[up] = cols_up - K, -w2[cols_up]
+    dpos = first + has_up
+    indices[dpos], data[dpos] = np.arange(T * K), diag
+    return sp.csc_matrix((data, indices, indptr), shape=(n_z, n_z))

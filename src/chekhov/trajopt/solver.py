@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -33,6 +34,34 @@ FIRST_STEP_S = 2.5e-3
 evaluation), for not starting a step that cannot finish by the time limit."""
 
 
+@dataclass
+class _SQPState:
+    """The SQP's state as it runs (mutable: one per ``solve_trajopt`` call).
+
+    Attributes:
+        x: the current trajectory, flattened (T·K,) rad. ev: its evaluation.
+        qp: the QP subproblem (rebuilt larger when the terms outgrow it; ``rebuilds`` counts).
+        mu: the penalty coefficient. trust: the trust box's half-width, rad.
+        deadline: ``time.perf_counter()`` value, s. step_s: s, expected cost of the next step.
+        timing: s per phase (collision, linearise, qp, validate, …).
+        converged / out_of_budget: why the current penalty's loop ended.
+    """
+
+    x: Array
+    ev: Evaluation
+    qp: TrajOptQP
+    mu: float
+    trust: float
+    deadline: float
+    timing: dict[str, float]
+    step_s: float = FIRST_STEP_S
+    iterations: int = 0
+    penalty_increases: int = 0
+    rebuilds: int = 0
+    converged: bool = False
+    out_of_budget: bool = False
+
+
 def solve_trajopt(problem: TrajOptProblem, deadline: float = math.inf) -> TrajOptResult:
     """Optimise the problem's seed; validate the result as ``config.validate`` says.
 
@@ -46,107 +75,134 @@ def solve_trajopt(problem: TrajOptProblem, deadline: float = math.inf) -> TrajOp
     cpu_start = time.process_time()
     deadline = min(deadline, t_start + cfg.time_limit_s)
     timing = {"collision": 0.0, "linearise": 0.0, "qp": 0.0, "validate": 0.0}
-    T, K = problem.n_waypoints, problem.dof
-    x = problem.seed.ravel().copy()
     try:
         ev = problem.evaluate(problem.seed, timing, deadline)
     except DeadlineError:
         return _timed_out(problem, t_start, timing)
     if time.perf_counter() + FIRST_STEP_S > deadline:
         return _timed_out(problem, t_start, timing)
-    qp = _sized_qp(problem, ev, None)
-    rebuilds = 0
-    mu = cfg.initial_penalty
-    trust = cfg.initial_trust_rad
-    iterations = penalty_increases = 0
-    converged = False
-    out_of_budget = False
-    step_s = FIRST_STEP_S
-    for _ in range(cfg.max_penalty_increases + 1):
-        converged = False
-        while True:
-            merit_old = problem.merit(ev, mu)
-            accepted = False
-            while trust >= cfg.min_trust_rad:
-                # a step that cannot finish by the deadline is not started (its cost: the
-                # last step's, or FIRST_STEP_S for the first, which sets OSQP up)
-                if iterations >= cfg.max_iterations or \
-                        time.perf_counter() + step_s > deadline:
-                    out_of_budget = True
-                    break
-                t0 = time.perf_counter()
-                if not qp.fits(ev):  # more terms than rows: a larger pattern, set up anew
-                    if t0 + FIRST_STEP_S > deadline:
-                        out_of_budget = True
-                        break
-                    qp = _sized_qp(problem, ev, qp)
-                    rebuilds += 1
-                x_new, model, _ = qp.solve(ev, x, trust, mu,
-                                           max(deadline - time.perf_counter(), 1e-5))
-                timing["qp"] += time.perf_counter() - t0
-                iterations += 1
-                if time.perf_counter() > deadline:   # no time left to evaluate the step
-                    out_of_budget = True
-                    break
-                approx = merit_old - model
-                if approx < cfg.min_approx_improve or \
-                        approx < cfg.min_approx_improve_frac * abs(merit_old):
-                    converged = True
-                    break
-                try:
-                    ev_new = problem.evaluate(x_new.reshape(T, K), timing, deadline)
-                except DeadlineError:
-                    out_of_budget = True
-                    break
-                step_s = time.perf_counter() - t0
-                exact = merit_old - problem.merit(ev_new, mu)
-                if exact > cfg.improve_ratio_threshold * approx:
-                    x, ev = x_new, ev_new
-                    trust *= cfg.trust_expand
-                    accepted = True
-                    break
-                trust *= cfg.trust_shrink
-            if trust < cfg.min_trust_rad:
-                converged = True
-            if converged or out_of_budget or not accepted:
-                break
-        if out_of_budget or problem.satisfied(ev):
-            break
-        if penalty_increases == cfg.max_penalty_increases:
-            break
-        mu *= cfg.penalty_increase
-        penalty_increases += 1
-        trust = max(trust, cfg.initial_trust_rad)
-    Q = x.reshape(T, K)
-    satisfied = problem.satisfied(ev)
+    state = _SQPState(x=problem.seed.ravel().copy(), ev=ev, qp=_sized_qp(problem, ev, None),
+                      mu=cfg.initial_penalty, trust=cfg.initial_trust_rad, deadline=deadline,
+                      timing=timing)
+    _penalty_loop(problem, state)
     cpu_s = time.process_time() - cpu_start
-    status = ("converged" if converged else "iteration_limit") if satisfied else "infeasible"
-    valid: bool | None = None
-    certificate: PathCertificate | None = None
+    return _finish(problem, state, t_start, cpu_s)
+
+
+def _penalty_loop(problem: TrajOptProblem, s: _SQPState) -> None:
+    """The outer loop: optimise at each penalty μ = μ₀, kμ₀, … until the constraints hold,
+    the budget ends or ``max_penalty_increases`` is reached."""
+    cfg = problem.config
+    for _ in range(cfg.max_penalty_increases + 1):
+        _optimise_at_penalty(problem, s)
+        if s.out_of_budget or problem.satisfied(s.ev):
+            break
+        if s.penalty_increases == cfg.max_penalty_increases:
+            break
+        s.mu *= cfg.penalty_increase
+        s.penalty_increases += 1
+        s.trust = max(s.trust, cfg.initial_trust_rad)
+
+
+def _optimise_at_penalty(problem: TrajOptProblem, s: _SQPState) -> None:
+    """Convexify and take trust-region steps at the current penalty until the model's
+    improvement or the trust box is tiny, no step is accepted, or the budget ends."""
+    s.converged = False
+    while True:
+        accepted = _trust_region_step(problem, s, problem.merit(s.ev, s.mu))
+        if s.trust < problem.config.min_trust_rad:
+            s.converged = True
+        if s.converged or s.out_of_budget or not accepted:
+            break
+
+
+def _trust_region_step(problem: TrajOptProblem, s: _SQPState, merit_old: float) -> bool:
+    """Solve the QP in the trust box, shrinking the box until the true merit improvement is
+    a large enough share of the model's (then accept the step and grow the box: True).
+    False when the box became tiny, the model's improvement is tiny (``s.converged``) or the
+    budget ended (``s.out_of_budget``)."""
+    cfg = problem.config
+    while s.trust >= cfg.min_trust_rad:
+        # a step that cannot finish by the deadline is not started (its cost: the last
+        # step's, or FIRST_STEP_S for the first, which sets OSQP up)
+        if s.iterations >= cfg.max_iterations or time.perf_counter() + s.step_s > s.deadline:
+            s.out_of_budget = True
+            return False
+        t0 = time.perf_counter()
+        if not s.qp.fits(s.ev):  # more terms than rows: a larger pattern, set up anew
+            if t0 + FIRST_STEP_S > s.deadline:
+                s.out_of_budget = True
+                return False
+            s.qp = _sized_qp(problem, s.ev, s.qp)
+            s.rebuilds += 1
+        x_new, model, _ = s.qp.solve(s.ev, s.x, s.trust, s.mu,
+                                     max(s.deadline - time.perf_counter(), 1e-5))
+        s.timing["qp"] += time.perf_counter() - t0
+        s.iterations += 1
+        if time.perf_counter() > s.deadline:   # no time left to evaluate the step
+            s.out_of_budget = True
+            return False
+        approx = merit_old - model
+        if approx < cfg.min_approx_improve or \
+                approx < cfg.min_approx_improve_frac * abs(merit_old):
+            s.converged = True
+            return False
+        try:
+            ev_new = problem.evaluate(x_new.reshape(problem.n_waypoints, problem.dof),
+                                      s.timing, s.deadline)
+        except DeadlineError:
+            s.out_of_budget = True
+            return False
+        s.step_s = time.perf_counter() - t0
+        if merit_old - problem.merit(ev_new, s.mu) > cfg.improve_ratio_threshold * approx:
+            s.x, s.ev = x_new, ev_new
+            s.trust *= cfg.trust_expand
+            return True
+        s.trust *= cfg.trust_shrink
+    return False
+
+
+def _finish(problem: TrajOptProblem, s: _SQPState, t_start: float, cpu_s: float
+            ) -> TrajOptResult:
+    """The result of the SQP's last trajectory, validated (``config.validate``)."""
+    Q = s.x.reshape(problem.n_waypoints, problem.dof)
     t0 = time.perf_counter()
-    clearance_only = cfg.accept_exact_clear and problem.unmet(ev) == {"collision_m"}
-    if cfg.validate != "none" and (satisfied or clearance_only):
-        # short of the sphere model's margin only: the checker decides (config docstring)
-        valid, certificate = validate_path(problem.world, Q, cfg.validate, cfg.substeps,
-                                           deadline)
-        if valid is None:
-            status = "timeout"
-        elif satisfied and not valid:
-            status = "collision"
-        elif not satisfied and valid:
-            status = "exact_clear"
-    timing["validate"] = time.perf_counter() - t0
+    status, valid, certificate = _validated_status(problem, s, Q)
+    s.timing["validate"] = time.perf_counter() - t0
     total = time.perf_counter() - t_start
-    timing["other"] = max(0.0, total - sum(timing.values()))
-    timing["total"] = total
+    s.timing["other"] = max(0.0, total - sum(s.timing.values()))
+    s.timing["total"] = total
     return TrajOptResult(
         trajectory=Q, status=status, success=status in SUCCESS,
         valid=valid, certificate=certificate, costs={"smoothness": problem.smoothness(Q),
-                            "merit": problem.merit(ev, mu)},
-        violations=problem.constraint_report(ev), iterations=iterations,
-        penalty_increases=penalty_increases, timing_s=timing, seed=problem.seed,
-        info={"cpu_s": cpu_s, "penalty": mu, "trust_rad": trust, "qp_rebuilds": rebuilds,
-              "admm_iterations": qp.admm_iterations})
+                                                     "merit": problem.merit(s.ev, s.mu)},
+        violations=problem.constraint_report(s.ev), iterations=s.iterations,
+        penalty_increases=s.penalty_increases, timing_s=s.timing, seed=problem.seed,
+        info={"cpu_s": cpu_s, "penalty": s.mu, "trust_rad": s.trust,
+              "qp_rebuilds": s.rebuilds, "admm_iterations": s.qp.admm_iterations})
+
+
+def _validated_status(problem: TrajOptProblem, s: _SQPState, Q: Array
+                      ) -> tuple[str, bool | None, PathCertificate | None]:
+    """(status, the validation's decision, its certificate) of the final trajectory Q (T, K)
+    rad: "converged" / "iteration_limit" / "infeasible" from the SQP, then "timeout",
+    "collision" or "exact_clear" as the validation decides."""
+    cfg = problem.config
+    satisfied = problem.satisfied(s.ev)
+    status = ("converged" if s.converged else "iteration_limit") if satisfied else "infeasible"
+    clearance_only = cfg.accept_exact_clear and problem.unmet(s.ev) == {"collision_m"}
+    if cfg.validate == "none" or not (satisfied or clearance_only):
+        return status, None, None
+    # short of the sphere model's margin only: the checker decides (config docstring)
+    valid, certificate = validate_path(problem.world, Q, cfg.validate, cfg.substeps,
+                                       s.deadline)
+    if valid is None:
+        status = "timeout"
+    elif satisfied and not valid:
+        status = "collision"
+    elif not satisfied and valid:
+        status = "exact_clear"
+    return status, valid, certificate
 
 
 def validate_path(world: World, path: Array, mode: str = "exact", substeps: int = 100,
