@@ -6,6 +6,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from datetime import UTC, datetime
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -198,6 +199,26 @@ class _Builder:
         return edges, lengths
 
 
+class _NodeSet(NamedTuple):
+    """The roadmap's nodes: configurations (N, K) rad, family (N,) int8 (index into
+    ``NODE_KINDS``) and label (N,) str (the grasp of a pre-grasp node, else "")."""
+
+    q: Array
+    kind: NDArray[np.int8]
+    label: NDArray[np.str_]
+
+
+class _Graph(NamedTuple):
+    """The largest connected component: its nodes, edges (E, 2) node indices, edge lengths
+    (E,) rad, how many nodes were dropped and how many components there were."""
+
+    nodes: _NodeSet
+    edges: NDArray[np.int64]
+    lengths: Array
+    dropped: int
+    n_components: int
+
+
 def build_roadmap(world: World, config: RoadmapConfig | None = None,
                   progress: Progress | None = None) -> Roadmap:
     """Build a roadmap for ``world``'s scene and robot against its static obstacles only.
@@ -208,9 +229,51 @@ def build_roadmap(world: World, config: RoadmapConfig | None = None,
     t0 = time.perf_counter()
     b = _Builder(world, config, progress)
     say = b.say
-    say(f"roadmap for '{world.scene.name}': sampling {config.n_nodes} uniform nodes")
+    sampled = _sample_nodes(b)
+    say(f"  connecting {len(sampled.q)} nodes to their {config.k_neighbors} nearest free "
+        "neighbours")
+    g = _largest_component(sampled, *b.connect(sampled.q))
+    nodes, edges, lengths = g.nodes, g.edges, g.lengths
+    N = len(nodes.q)
+    say(f"  largest component: {N} nodes, {len(edges)} edges ({g.dropped} dropped, "
+        f"{g.n_components} components); all-pairs shortest paths")
+    A = coo_matrix((lengths, (edges[:, 0], edges[:, 1])), shape=(N, N)).tocsr()
+    dist, pred = shortest_path(A, method="D", directed=False, return_predecessors=True)
+    pred = pred.astype(np.int16 if N < 32767 else np.int32)
+    indptr, indices, weights, edge_id = csr_adjacency(N, edges, lengths)
+    R, p = b.kin.ee_poses(nodes.q)
+    sem = np.flatnonzero(nodes.kind == 1)
+    keys, chunks = _semantic_k_paths(sem, dist, (indptr, indices, weights, edge_id),
+                                     config.k_paths)
+    kpath_ptr = np.zeros(len(chunks) + 1, dtype=np.int64)
+    np.cumsum([len(c) for c in chunks], out=kpath_ptr[1:])
+    say(f"  {len(keys)} stored k-shortest paths between {len(sem)} semantic nodes")
+    build_s = time.perf_counter() - t0
+    meta = RoadmapMeta(
+        format_version=FORMAT_VERSION, robot=world.robot.name, scene=world.scene.name,
+        scene_hash=world.scene.content_hash(), robot_hash=world.robot.content_hash(),
+        config=config, build_s=build_s,
+        created=datetime.now(UTC).isoformat(timespec="seconds"), dropped_nodes=g.dropped,
+        node_counts={k: int((nodes.kind == i).sum()) for i, k in enumerate(NODE_KINDS)},
+        notes=b.notes)
+    say(f"  built in {build_s:.1f} s")
+    return Roadmap(
+        nodes=nodes.q, node_kind=nodes.kind, node_label=nodes.label, ee_position=p,
+        ee_rotation=R, edges=edges.astype(np.int32), edge_length=lengths, indptr=indptr,
+        indices=indices, weights=weights, edge_id=edge_id, dist=dist.astype(np.float32),
+        pred=pred, kpath_key=np.array(keys, dtype=np.int32).reshape(-1, 3),
+        kpath_ptr=kpath_ptr,
+        kpath_nodes=(np.concatenate(chunks) if chunks else np.empty(0)).astype(np.int32),
+        meta=meta)
+
+
+def _sample_nodes(b: _Builder) -> _NodeSet:
+    """Every node family, in ``NODE_KINDS`` order: uniform, then (``config.semantic``)
+    pre-grasp and region nodes, then wrist nodes."""
+    config, say = b.config, b.say
+    say(f"roadmap for '{b.world.scene.name}': sampling {config.n_nodes} uniform nodes")
     uniform = b.uniform_nodes()
-    R, p = b.kin.ee_poses(uniform)
+    _, p = b.kin.ee_poses(uniform)
     tree = cKDTree(p)
     groups: list[tuple[int, Array, list[str]]] = [
         (0, uniform, [""] * len(uniform))]
@@ -227,58 +290,40 @@ def build_roadmap(world: World, config: RoadmapConfig | None = None,
     if len(wn):
         say(f"  {len(wn)} wrist nodes")
         groups.append((3, wn, [""] * len(wn)))
-    nodes = np.concatenate([g[1] for g in groups])
-    kind = np.concatenate([np.full(len(g[1]), g[0], dtype=np.int8) for g in groups])
-    label = np.array([s for g in groups for s in g[2]], dtype=np.str_)
-    say(f"  connecting {len(nodes)} nodes to their {config.k_neighbors} nearest free neighbours")
-    edges, lengths = b.connect(nodes)
-    # largest connected component
-    N = len(nodes)
-    lengths = np.maximum(lengths, 1e-9)  # csgraph reads explicit zeros as no edge
+    return _NodeSet(np.concatenate([g[1] for g in groups]),
+                    np.concatenate([np.full(len(g[1]), g[0], dtype=np.int8) for g in groups]),
+                    np.array([s for g in groups for s in g[2]], dtype=np.str_))
+
+
+def _largest_component(nodes: _NodeSet, edges: NDArray[np.int64], lengths: Array) -> _Graph:
+    """The largest connected component of the graph, nodes renumbered; edge lengths at least
+    1e-9 rad (csgraph reads explicit zeros as no edge)."""
+    N = len(nodes.q)
+    lengths = np.maximum(lengths, 1e-9)
     A = coo_matrix((lengths, (edges[:, 0], edges[:, 1])), shape=(N, N)).tocsr()
     n_comp, comp = connected_components(A, directed=False)
     keep = comp == np.argmax(np.bincount(comp))
-    dropped = int(N - keep.sum())
     new_index = np.cumsum(keep) - 1
     e_keep = keep[edges[:, 0]] & keep[edges[:, 1]]
-    edges, lengths = new_index[edges[e_keep]], lengths[e_keep]
-    nodes, kind, label = nodes[keep], kind[keep], label[keep]
-    N = len(nodes)
-    say(f"  largest component: {N} nodes, {len(edges)} edges ({dropped} dropped, "
-        f"{n_comp} components); all-pairs shortest paths")
-    A = coo_matrix((lengths, (edges[:, 0], edges[:, 1])), shape=(N, N)).tocsr()
-    dist, pred = shortest_path(A, method="D", directed=False, return_predecessors=True)
-    pred = pred.astype(np.int16 if N < 32767 else np.int32)
-    indptr, indices, weights, edge_id = csr_adjacency(N, edges, lengths)
-    R, p = b.kin.ee_poses(nodes)
-    # k shortest paths between semantic nodes
-    sem = np.flatnonzero(kind == 1)
+    kept = _NodeSet(nodes.q[keep], nodes.kind[keep], nodes.label[keep])
+    return _Graph(kept, new_index[edges[e_keep]], lengths[e_keep], int(N - keep.sum()),
+                  int(n_comp))
+
+
+def _semantic_k_paths(sem: NDArray[np.int64], dist: Array,
+                      csr: tuple[NDArray[np.int64], NDArray[np.int64], Array,
+                                 NDArray[np.int64]], k_paths: int
+                      ) -> tuple[list[tuple[int, int, int]], list[NDArray[np.int64]]]:
+    """Yen's k shortest paths between every pair (a < b) of semantic nodes ``sem``, with the
+    all-pairs distances ``dist`` (N, N) rad as A*'s heuristic: the keys (a, b, rank) and the
+    node paths. ``csr``: the adjacency (indptr, indices, weights, edge_id)."""
     keys: list[tuple[int, int, int]] = []
     chunks: list[NDArray[np.int64]] = []
     heuristic_cols = {int(j): dist[:, j].astype(np.float64) for j in sem}
     for ai, a in enumerate(sem):
         for bb in sem[ai + 1:]:
             for rank, (_, path) in enumerate(yen_k_shortest(
-                    indptr, indices, weights, edge_id, int(a), int(bb), config.k_paths,
-                    heuristic=heuristic_cols[int(bb)])):
+                    *csr, int(a), int(bb), k_paths, heuristic=heuristic_cols[int(bb)])):
                 keys.append((int(a), int(bb), rank))
                 chunks.append(path)
-    kpath_ptr = np.zeros(len(chunks) + 1, dtype=np.int64)
-    np.cumsum([len(c) for c in chunks], out=kpath_ptr[1:])
-    say(f"  {len(keys)} stored k-shortest paths between {len(sem)} semantic nodes")
-    build_s = time.perf_counter() - t0
-    meta = RoadmapMeta(
-        format_version=FORMAT_VERSION, robot=world.robot.name, scene=world.scene.name,
-        scene_hash=world.scene.content_hash(), robot_hash=world.robot.content_hash(),
-        config=config, build_s=build_s,
-        created=datetime.now(UTC).isoformat(timespec="seconds"), dropped_nodes=dropped,
-        node_counts={k: int((kind == i).sum()) for i, k in enumerate(NODE_KINDS)},
-        notes=b.notes)
-    say(f"  built in {build_s:.1f} s")
-    return Roadmap(
-        nodes=nodes, node_kind=kind, node_label=label, ee_position=p, ee_rotation=R,
-        edges=edges.astype(np.int32), edge_length=lengths, indptr=indptr, indices=indices,
-        weights=weights, edge_id=edge_id, dist=dist.astype(np.float32), pred=pred,
-        kpath_key=np.array(keys, dtype=np.int32).reshape(-1, 3), kpath_ptr=kpath_ptr,
-        kpath_nodes=(np.concatenate(chunks) if chunks else np.empty(0)).astype(np.int32),
-        meta=meta)
+    return keys, chunks
