@@ -133,42 +133,60 @@ class Viewer:
         self.goal = self.cases.goal(0)
         self.handles: dict[str, Any] = {}
 
+        self._start_server(host, port)
+        self._draw_world(show_spheres, show_roadmap, show_edges)
+        self.obstacles: dict[str, viser.TransformControlsHandle] = {}
+        self.obstacle_name = obstacle_name if obstacle is not None else None
+        self._add_obstacles(obstacle, obstacle_name, obstacle_pose)
+        self.handles["/plan/seed"] = draw_trace(self.server, "/plan/seed", None, SEED_RGB, 3.0)
+        self.handles["/plan/path"] = draw_trace(self.server, "/plan/path", None, PATH_RGB, 5.0)
+        self._build_gui(show_spheres, show_roadmap, show_edges)
+        self._start_threads()
+        if plan_on_start:
+            self.select_case(0, plan=True)
+
+    def _start_server(self, host: str, port: int) -> None:
+        """The viser server on host:port (0: any free port), its camera on the robot."""
         self.server = viser.ViserServer(host=host, port=port, verbose=False)
         if port != 0 and self.server.get_port() != port:  # lost a race for the port
             self.server.stop()
             raise ViewerError(f"port {port} on {host} is already in use; choose another "
                               "with --port")
         self.host, self.port = host, int(self.server.get_port())
-        eye, look = camera_for(world)
+        eye, look = camera_for(self.world)
         self.server.initial_camera.position = tuple(eye)
         self.server.initial_camera.look_at = tuple(look)
+
+    def _draw_world(self, show_spheres: bool, show_roadmap: bool, show_edges: bool) -> None:
+        """The scene, the robot at the start, its spheres, the roadmap and the markers."""
+        world = self.world
         self.handles.update(draw_scene(self.server, world))
         self.robot_meshes = RobotMeshes(world.robot)
         self.robot = RobotDrawing(self.server, self.robot_meshes, self.q_start)
         self.spheres = SphereDrawing(self.server, world, self.q_start, visible=show_spheres)
         self.handles["/roadmap/nodes"], self.handles["/roadmap/edges"] = draw_roadmap(
-            self.server, roadmap, show_roadmap, show_edges)
+            self.server, self.roadmap, show_roadmap, show_edges)
         self._add_markers()
-        self.obstacles: dict[str, viser.TransformControlsHandle] = {}
-        for o in world.scene.dynamic_objects:
+
+    def _add_obstacles(self, obstacle: Shape | None, name: str, pose: Array | None) -> None:
+        """A gizmo on each of the scene's dynamic objects, and the draggable obstacle
+        ``obstacle`` (added to the world at ``pose``, T_world_obj, default beside the robot)."""
+        for o in self.world.scene.dynamic_objects:
             self._add_obstacle_gizmo(o, o.T_world_obj())
-        self.obstacle_name = obstacle_name if obstacle is not None else None
         if obstacle is not None:
-            T = default_obstacle_pose(world) if obstacle_pose is None else obstacle_pose
-            world.add_obstacle(obstacle_name, obstacle, T)
-            self._add_obstacle_gizmo(SceneObject(obstacle_name, obstacle, Pose(), "person",
+            T = default_obstacle_pose(self.world) if pose is None else pose
+            self.world.add_obstacle(name, obstacle, T)
+            self._add_obstacle_gizmo(SceneObject(name, obstacle, Pose(), "person",
                                                  dynamic=True), T)
-        self.handles["/plan/seed"] = draw_trace(self.server, "/plan/seed", None, SEED_RGB, 3.0)
-        self.handles["/plan/path"] = draw_trace(self.server, "/plan/path", None, PATH_RGB, 5.0)
-        self._build_gui(show_spheres, show_roadmap, show_edges)
+
+    def _start_threads(self) -> None:
+        """The replanning worker and the animation loop (daemon threads)."""
         self._worker = threading.Thread(target=self._replan_loop, daemon=True,
                                         name="chekhov-replan")
         self._worker.start()
         self._animator = threading.Thread(target=self._animate_loop, daemon=True,
                                           name="chekhov-animate")
         self._animator.start()
-        if plan_on_start:
-            self.select_case(0, plan=True)
 
     # --- Python API ---------------------------------------------------------------------
     @property
@@ -303,6 +321,13 @@ class Viewer:
 
     # --- GUI ----------------------------------------------------------------------------
     def _build_gui(self, show_spheres: bool, show_roadmap: bool, show_edges: bool) -> None:
+        """The GUI panel (``handles["gui/…"]``) and what its controls do."""
+        self._add_gui_controls(show_spheres, show_roadmap, show_edges)
+        self._wire_gui_callbacks()
+
+    def _add_gui_controls(self, show_spheres: bool, show_roadmap: bool, show_edges: bool
+                          ) -> None:
+        """The panel's folders: Plan, Playback, Dynamic obstacle, Show, Result."""
         gui = self.server.gui
         h = self.handles
         rm = self.roadmap
@@ -333,6 +358,10 @@ class Viewer:
                                                      initial_value=show_spheres)
         with gui.add_folder("Result"):
             h["gui/result"] = gui.add_markdown("(no plan yet)")
+
+    def _wire_gui_callbacks(self) -> None:
+        """Case and Plan replan; the time slider poses the robot; Show toggles layers."""
+        h = self.handles
 
         @h["gui/case"].on_update
         def _(_: Any) -> None:

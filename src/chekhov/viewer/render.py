@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import coal
 import matplotlib
@@ -102,29 +103,16 @@ def render_scene(world: World, q: Array | None = None, path: Array | None = None
                  seed: Array | None = None) -> Path:
     """Write a PNG of the scene with the robot at q (default: the path's start) and, if a path
     (T, K) is given, ghosts of the robot along it, the end-effector trace and its start (green)
-    and end (red); with ``seed`` (T', K), the seed's end-effector trace too (orange, dashed)."""
+    and end (red); with ``seed`` (T', K), the seed's end-effector trace too (orange, dashed).
+    ``elev`` / ``azim``: the view's elevation and azimuth, degrees (azimuth default: over the
+    robot's shoulder)."""
     fig = plt.figure(figsize=(8, 7), dpi=110)
     ax = fig.add_subplot(projection="3d")
     ax.set_autoscale_on(False)  # limits are set below; autoscaling many polygons can overflow
-    for o in world.scene.objects:
-        s = o.shape
-        size = s.half_extents if s.kind == "box" else (
-            np.array([s.size[0], s.size[1] / 2]) if s.kind == "cylinder" else np.array(s.size))
-        color = DYNAMIC_COLOR if o.dynamic else CLASS_COLORS.get(o.cls, "#c0c0c0")
-        ax.add_collection3d(Poly3DCollection(shape_faces(s.kind, size, o.T_world_obj()),
-                                             facecolor=color, edgecolor="#00000030",
-                                             linewidth=0.2, alpha=0.55 if o.dynamic else 0.8))
+    _draw_obstacles(ax, world)
     if path is not None:
         P = np.atleast_2d(path)
-        idx = np.linspace(0, len(P) - 1, min(ghosts, len(P))).astype(int)
-        for k, i in enumerate(idx[1:], 1):
-            ax.add_collection3d(Poly3DCollection(robot_faces(world, P[i]), facecolor="#3070c0",
-                                                 alpha=0.08 + 0.2 * k / len(idx), linewidth=0))
-        ee = world.robot.compute_ee_poses(P)[:, :3, 3]
-        ax.plot(ee[:, 0], ee[:, 1], ee[:, 2], color="#c02020", linewidth=2,
-                label="trajectory (end effector)")
-        ax.scatter(*ee[0], color="#20a020", s=30, label="start", depthshade=False)
-        ax.scatter(*ee[-1], color="#d02020", s=30, label="goal", depthshade=False)
+        _draw_path(ax, world, P, ghosts)
         q = P[0] if q is None else q
     if seed is not None:
         es = world.robot.compute_ee_poses(np.atleast_2d(seed))[:, :3, 3]
@@ -135,6 +123,41 @@ def render_scene(world: World, q: Array | None = None, path: Array | None = None
     if q is not None:
         ax.add_collection3d(Poly3DCollection(robot_faces(world, q), facecolor="#d8dde3",
                                              edgecolor="#30303040", linewidth=0.1, alpha=0.9))
+    lo, hi = _world_box(world, [a for a in (path, seed) if a is not None])
+    _set_view(ax, world, lo, hi, elev, azim)
+    ax.set_title(title or world.scene.name)
+    return _save_png(fig, Path(out))
+
+
+def _draw_obstacles(ax: Any, world: World) -> None:
+    """The scene's objects, coloured by class (dynamic ones in ``DYNAMIC_COLOR``)."""
+    for o in world.scene.objects:
+        s = o.shape
+        size = s.half_extents if s.kind == "box" else (
+            np.array([s.size[0], s.size[1] / 2]) if s.kind == "cylinder" else np.array(s.size))
+        color = DYNAMIC_COLOR if o.dynamic else CLASS_COLORS.get(o.cls, "#c0c0c0")
+        ax.add_collection3d(Poly3DCollection(shape_faces(s.kind, size, o.T_world_obj()),
+                                             facecolor=color, edgecolor="#00000030",
+                                             linewidth=0.2, alpha=0.55 if o.dynamic else 0.8))
+
+
+def _draw_path(ax: Any, world: World, P: Array, ghosts: int) -> None:
+    """Up to ``ghosts`` robots along the path P (T, K) rad (fainter towards its start, the
+    first left out), the end-effector trace, its start and its end."""
+    idx = np.linspace(0, len(P) - 1, min(ghosts, len(P))).astype(int)
+    for k, i in enumerate(idx[1:], 1):
+        ax.add_collection3d(Poly3DCollection(robot_faces(world, P[i]), facecolor="#3070c0",
+                                             alpha=0.08 + 0.2 * k / len(idx), linewidth=0))
+    ee = world.robot.compute_ee_poses(P)[:, :3, 3]
+    ax.plot(ee[:, 0], ee[:, 1], ee[:, 2], color="#c02020", linewidth=2,
+            label="trajectory (end effector)")
+    ax.scatter(*ee[0], color="#20a020", s=30, label="start", depthshade=False)
+    ax.scatter(*ee[-1], color="#d02020", s=30, label="goal", depthshade=False)
+
+
+def _world_box(world: World, paths: list[Array]) -> tuple[Array, Array]:
+    """(lo, hi) corners (3,) m in the world of the box shown: the workspace around the robot's
+    base, grown to hold the end-effector traces of ``paths`` (each (T, K) rad)."""
     lo = np.array([-0.6, -0.9, 0.0])
     hi = np.array([1.4, 1.3, 2.0])
     base = world.robot.T_world_base[:3, 3]
@@ -142,12 +165,17 @@ def render_scene(world: World, q: Array | None = None, path: Array | None = None
         fwd = world.robot.T_world_base[:3, 0]
         c = base + 0.5 * fwd
         lo, hi = np.array([c[0] - 1.1, c[1] - 1.1, 0.0]), np.array([c[0] + 1.1, c[1] + 1.1, 2.0])
-    traces = [world.robot.compute_ee_poses(np.atleast_2d(a))[:, :3, 3]
-              for a in (path, seed) if a is not None]
+    traces = [world.robot.compute_ee_poses(np.atleast_2d(a))[:, :3, 3] for a in paths]
     if traces:  # keep the traces inside the box
         pts = np.vstack(traces)
         lo = np.minimum(lo, pts.min(axis=0) - 0.05)
         hi = np.maximum(hi, pts.max(axis=0) + 0.05)
+    return lo, hi
+
+
+def _set_view(ax: Any, world: World, lo: Array, hi: Array, elev: float, azim: float | None
+              ) -> None:
+    """Axis limits (the box lo..hi, m, true aspect), labels and the camera (degrees)."""
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
     ax.set_zlim(lo[2], hi[2])
@@ -159,8 +187,10 @@ def render_scene(world: World, q: Array | None = None, path: Array | None = None
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.set_zlabel("z (m)")
-    ax.set_title(title or world.scene.name)
-    out = Path(out)
+
+
+def _save_png(fig: Any, out: Path) -> Path:
+    """Write the figure to ``out`` (a temporary file beside it, renamed) and close it."""
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(f".{out.name}.tmp.png")
     fig.savefig(tmp, bbox_inches="tight")
