@@ -78,14 +78,29 @@ def write_report(db_path: str | Path, out_dir: str | Path) -> ReportFiles:
 def markdown(db_path: Path, stats: Stats, experiments: list[dict[str, Any]],
              configs: list[dict[str, Any]], rows: list[dict[str, Any]],
              images: list[str]) -> str:
-    limits = sorted({float(e["timelimit"]) for e in experiments})
+    """The report: how it was produced, the summary, the paper's Tables I–IV beside ours, the
+    plots (``images``: file names beside the report), failure kinds and the planners'
+    settings (``configs``: plannerConfigs rows; ``rows``: the runs)."""
+    cases = {k: max(s.cases for s in v.values()) for k, v in stats.items()}
+    L = [*_introduction(db_path, experiments, cases),
+         *_how_produced(db_path, stats, experiments, cases),
+         "## Summary\n", _summary_table(stats), *_targets_section(stats),
+         "\n" + _table_i(stats), "\n" + _table_ii(stats), "\n" + _table_iii(stats),
+         "\n" + _table_iv(stats), "\n## Plots\n", *(f"![{n}]({n})\n" for n in images),
+         *_failure_kinds(stats), *_configurations(configs, rows)]
     scenes = sorted({s for s, _ in stats})
     planners = plots.planner_order(sorted({n for v in stats.values() for n in v}))
-    cases = {k: max(s.cases for s in v.values()) for k, v in stats.items()}
-    L: list[str] = []
-    add = L.append
-    add("# Chekhov benchmark report\n")
-    add(f"Database `{db_path.name}`, report written {time.strftime('%Y-%m-%d %H:%M')}. "
+    L.append(f"Planners in this report: {', '.join(planners)}. Scenes: {', '.join(scenes)}.\n")
+    return "\n".join(L) + "\n"
+
+
+def _introduction(db_path: Path, experiments: list[dict[str, Any]],
+                  cases: dict[tuple[str, float], int]) -> list[str]:
+    """Title, time limits, cases per scene (``cases``: by (scene, limit s)), the exact check."""
+    limits = sorted({float(e["timelimit"]) for e in experiments})
+    return [
+        "# Chekhov benchmark report\n",
+        f"Database `{db_path.name}`, report written {time.strftime('%Y-%m-%d %H:%M')}. "
         f"**Time limit per planning call: {', '.join(f'{x:g} s' for x in limits)}** "
         f"(the paper: {paper.PAPER_TIME_LIMIT_S:g} s). RRT* and PRM* optimise path length and "
         "run to the limit, as in the paper. Cases per scene: "
@@ -93,81 +108,89 @@ def markdown(db_path: Path, stats: Stats, experiments: list[dict[str, Any]],
         + f" (the paper: {paper.PAPER_CASES}). Every returned path is re-checked by the runner "
         "with the exact checker (pinocchio + coal on the URDF geometry) at "
         f"{_substeps(experiments)} interpolated configurations per segment — the paper's "
-        "continuous-time check — independently of the planner.\n")
-    add("## How it was produced\n")
-    add("```")
+        "continuous-time check — independently of the planner.\n"]
+
+
+def _how_produced(db_path: Path, stats: Stats, experiments: list[dict[str, Any]],
+                  cases: dict[tuple[str, float], int]) -> list[str]:
+    """The commands that reproduce the database, its experiments, how times were measured."""
+    L = ["## How it was produced\n", "```"]
     files = {e["name"]: str(e["case_source"]).split()[1] for e in experiments
              if str(e["case_source"]).startswith("file ")}
     for (scene, limit), n in sorted(cases.items()):
         ps = " ".join(f"'{p}'" for p in plots.planner_order(list(stats[(scene, limit)])))
         cf = f" --case-file cases/{files[scene]}" if scene in files else ""
-        add(f"chekhov bench --scenes {scene} --planners {ps} --cases {n} "
-            f"--time-limit {limit:g}{cf} --db {db_path.name}")
-    add(f"chekhov report {db_path.name} --out DIR")
-    add("```\n")
+        L.append(f"chekhov bench --scenes {scene} --planners {ps} --cases {n} "
+                 f"--time-limit {limit:g}{cf} --db {db_path.name}")
+    L += [f"chekhov report {db_path.name} --out DIR", "```\n"]
     if files:
-        add("Case files (`chekhov cases generate SCENE --n N --seed S`, with the paper's "
-            "solvability pass) are read from `cases/` beside this report.\n")
-    for e in experiments:
-        add(f"* experiment {e['id']} `{e['name']}`: cases {e['case_source']}, limit "
-            f"{e['timelimit']:g} s, motion-check resolution {e['resolution']:g} rad, "
-            f"{e['version']}, host {e['hostname']} ({e['cpuinfo']}), started {e['date']}, "
-            f"{e['totaltime']:.0f} s of planning and checking in all.")
-    add("\nTimes are wall-clock seconds of `plan()` (IK, seeding, optimisation and the "
-        "planner's own validation included; the runner's exact check excluded), measured "
-        "with several runs in parallel on a shared machine: compare ratios rather than "
-        "absolute values. A failure is any run without a collision-free path "
-        "(no path, or a path the exact check rejects), as in the paper.\n")
-    add("## Summary\n")
-    add(_summary_table(stats))
+        L.append("Case files (`chekhov cases generate SCENE --n N --seed S`, with the paper's "
+                 "solvability pass) are read from `cases/` beside this report.\n")
+    L += [f"* experiment {e['id']} `{e['name']}`: cases {e['case_source']}, limit "
+          f"{e['timelimit']:g} s, motion-check resolution {e['resolution']:g} rad, "
+          f"{e['version']}, host {e['hostname']} ({e['cpuinfo']}), started {e['date']}, "
+          f"{e['totaltime']:.0f} s of planning and checking in all." for e in experiments]
+    L.append("\nTimes are wall-clock seconds of `plan()` (IK, seeding, optimisation and the "
+             "planner's own validation included; the runner's exact check excluded), measured "
+             "with several runs in parallel on a shared machine: compare ratios rather than "
+             "absolute values. A failure is any run without a collision-free path "
+             "(no path, or a path the exact check rejects), as in the paper.\n")
+    return L
+
+
+def _targets_section(stats: Stats) -> list[str]:
+    """Roadmap+TrajOpt against the issue's targets, per scene (nothing without it)."""
     goals = {k: targets(v) for k, v in stats.items() if ROADMAP in v}
-    if goals:
-        add("\n### Roadmap+TrajOpt against the issue's targets\n")
-        names = list(next(iter(goals.values())))
-        add("| scene | " + " | ".join(n.replace("_", " ") for n in names) + " |")
-        add("|---|" + "---|" * len(names))
-        for (scene, limit), g in sorted(goals.items()):
-            add(f"| {_scene(scene, limit, stats)} | "
-                + " | ".join("yes" if g[n] else "**no**" for n in names) + " |")
-    add("\n" + _table_i(stats))
-    add("\n" + _table_ii(stats))
-    add("\n" + _table_iii(stats))
-    add("\n" + _table_iv(stats))
-    add("\n## Plots\n")
-    for name in images:
-        add(f"![{name}]({name})\n")
-    add("## Failure kinds\n")
-    add("| scene | planner | runs by outcome |")
-    add("|---|---|---|")
+    if not goals:
+        return []
+    names = list(next(iter(goals.values())))
+    L = ["\n### Roadmap+TrajOpt against the issue's targets\n",
+         "| scene | " + " | ".join(n.replace("_", " ") for n in names) + " |",
+         "|---|" + "---|" * len(names)]
+    L += [f"| {_scene(scene, limit, stats)} | "
+          + " | ".join("yes" if g[n] else "**no**" for n in names) + " |"
+          for (scene, limit), g in sorted(goals.items())]
+    return L
+
+
+def _failure_kinds(stats: Stats) -> list[str]:
+    """Runs by outcome, per scene and planner."""
+    L = ["## Failure kinds\n", "| scene | planner | runs by outcome |", "|---|---|---|"]
     for (scene, limit), per in sorted(stats.items()):
         for pname in plots.planner_order(list(per)):
-            add(f"| {_scene(scene, limit, stats)} | {pname} | "
-                + ", ".join(f"{k} {v}" for k, v in per[pname].statuses.items()) + " |")
-    add("\n## How each planner was configured\n")
-    add("All planners check states and motions with the same fast checker (robot spheres "
-        "against the scene's primitives) at the same joint-space resolution; goals are the "
-        "goal pose (5 mm / 0.05 rad), reached through IK solutions. OMPL planners keep OMPL's "
-        "own defaults (range, goal bias, rewiring); approximate OMPL solutions count as "
-        "failures. X+TrajOpt gives X's path, resampled to ≤ 0.16 rad, to TrajOpt as its seed "
-        "(the paper's Table II); TrajOpt's validation re-checks its trajectory exactly, and a "
-        "rejected trajectory is a failure. Roadmap+TrajOpt falls back to its exactly checked "
-        "seed when TrajOpt's trajectory is rejected. The planner's time limit bounds IK and "
-        "the search; TrajOpt stages run under TrajOpt's own limit (in the settings) capped "
-        "by what is left of it for X+TrajOpt; Roadmap+TrajOpt's seeder has its own caps.\n")
+            L.append(f"| {_scene(scene, limit, stats)} | {pname} | "
+                     + ", ".join(f"{k} {v}" for k, v in per[pname].statuses.items()) + " |")
+    return L
+
+
+def _configurations(configs: list[dict[str, Any]], rows: list[dict[str, Any]]) -> list[str]:
+    """How each planner was configured: the common setup, shared seed runs, and the
+    settings of every planner that has runs."""
+    L = ["\n## How each planner was configured\n",
+         "All planners check states and motions with the same fast checker (robot spheres "
+         "against the scene's primitives) at the same joint-space resolution; goals are the "
+         "goal pose (5 mm / 0.05 rad), reached through IK solutions. OMPL planners keep OMPL's "
+         "own defaults (range, goal bias, rewiring); approximate OMPL solutions count as "
+         "failures. X+TrajOpt gives X's path, resampled to ≤ 0.16 rad, to TrajOpt as its seed "
+         "(the paper's Table II); TrajOpt's validation re-checks its trajectory exactly, and a "
+         "rejected trajectory is a failure. Roadmap+TrajOpt falls back to its exactly checked "
+         "seed when TrajOpt's trajectory is rejected. The planner's time limit bounds IK and "
+         "the search; TrajOpt stages run under TrajOpt's own limit (in the settings) capped "
+         "by what is left of it for X+TrajOpt; Roadmap+TrajOpt's seeder has its own caps.\n"]
+    # the database's info column: the stored record of a shared seed run
     shared = sum(1 for r in rows if "seed_stage_of" in (r.get("info") or {}))
     if shared:
-        add(f"{shared} runs of a sampling-based planner X are the seed stage of X+TrajOpt's "
-            "run on the same case (`chekhov bench` default; `--no-share-seed-runs` runs them "
-            "apart): the same planner with the same seed and limit, so its outcome is what a "
-            "separate run would give, at half the cost for RRT* and PRM*, which run to the "
-            "limit. Their `info` says `seed_stage_of`.\n")
+        L.append(f"{shared} runs of a sampling-based planner X are the seed stage of "
+                 "X+TrajOpt's run on the same case (`chekhov bench` default; "
+                 "`--no-share-seed-runs` runs them apart): the same planner with the same seed "
+                 "and limit, so its outcome is what a separate run would give, at half the "
+                 "cost for RRT* and PRM*, which run to the limit. Their `info` says "
+                 "`seed_stage_of`.\n")
     used = {r["plannerid"] for r in rows}
-    for c in configs:
-        if c["id"] in used:
-            add(f"* **{c['name']}** (plannerConfigs.id {c['id']}): `{_short(c['settings'])}`")
-    add("\nFull settings: `SELECT name, settings FROM plannerConfigs` in the database.\n")
-    add(f"Planners in this report: {', '.join(planners)}. Scenes: {', '.join(scenes)}.\n")
-    return "\n".join(L) + "\n"
+    L += [f"* **{c['name']}** (plannerConfigs.id {c['id']}): `{_short(c['settings'])}`"
+          for c in configs if c["id"] in used]
+    L.append("\nFull settings: `SELECT name, settings FROM plannerConfigs` in the database.\n")
+    return L
 
 
 def _substeps(experiments: list[dict[str, Any]]) -> str:
