@@ -24,7 +24,15 @@ from chekhov.roadmap.graph import Roadmap
 
 __all__ = ["BASE_PLANNERS", "GROUPS", "PLANNER_NAMES", "SEEDS", "PlannerSpec",
            "canonical_planner_name", "expand_planner_names", "is_optimal", "make_planner",
-           "planner_settings", "seed_planner_name", "settings_text"]
+           "planner_settings", "seed_planner_name", "settings_text", "uses_roadmap"]
+
+ROADMAP_PLANNERS = ("Roadmap+TrajOpt", "Roadmap+TrajOpt(paper)")
+
+
+def uses_roadmap(name: str) -> bool:
+    """Whether the registry planner ``name`` (or alias) plans on the scene's roadmap (the
+    only planners whose ``make_planner`` calls its ``roadmap`` argument)."""
+    return canonical_planner_name(name) in ROADMAP_PLANNERS
 
 
 def planner_settings(spec: PlannerSpec, planner: Planner, roadmap: Roadmap | None = None

@@ -42,6 +42,7 @@ from chekhov.bench.registry import (
     planner_settings,
     seed_planner_name,
     settings_text,
+    uses_roadmap,
 )
 from chekhov.bench.solvability import cached_solvable_cases
 from chekhov.bench.task import RunTask, case_hash
@@ -138,7 +139,7 @@ def _plan_scene(db: BenchDatabase, db_path: Path, config: BenchConfig, scene: st
     world = World.load(scene)
     cases, source = load_cases(world, config)
     roadmap = (load_roadmap_for(world, config)
-               if any(n.startswith("Roadmap+TrajOpt") for n in config.planners) else None)
+               if any(uses_roadmap(n) for n in config.planners) else None)
     setup = json.dumps({"scene": world.scene.name, "robot": world.robot.name,
                         "cases": source, "time_limit_s": config.time_limit_s,
                         "resolution_rad": config.resolution,

@@ -151,11 +151,13 @@ def targets(stats: dict[str, PlannerStats]) -> dict[str, bool]:
     rate, a lower mean and median runtime than every other seed + TrajOpt combination, a
     collision rate of 0 and a mean path length within 15% of the shortest planner's — over
     each planner's own solved cases, and on the cases both solved (``_common_cases``)."""
+    from chekhov.planners.registry import seed_planner_name
+
     rm = stats.get(ROADMAP)
     if rm is None:
         return {}
     others = [s for n, s in stats.items() if n != ROADMAP]
-    seeded = [s for s in others if s.planner.endswith("+TrajOpt")]
+    seeded = [s for s in others if seed_planner_name(s.planner) is not None]
     lengths = [s.mean_path_length_rad for s in stats.values()
                if math.isfinite(s.mean_path_length_rad)]
     return {

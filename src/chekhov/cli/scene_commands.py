@@ -77,6 +77,8 @@ def _check_show_args(args: argparse.Namespace) -> None:
                             ("--roadmap", args.roadmap)):
             if value is not None:
                 raise ChekhovError(f"{flag} is used only with --case N")
+    from chekhov.bench.registry import uses_roadmap
+
     if args.case is not None:
         from chekhov.planners.registry import canonical_planner_name
 
@@ -84,7 +86,7 @@ def _check_show_args(args: argparse.Namespace) -> None:
             args.planner = canonical_planner_name(args.planner or ROADMAP_TRAJOPT)
         except ChekhovError as e:
             raise ChekhovError(f"--planner: {e}") from e
-    if args.roadmap is not None and not args.planner.startswith(ROADMAP_TRAJOPT):
+    if args.roadmap is not None and not uses_roadmap(args.planner):
         raise ChekhovError(f"--roadmap is used only by --planner {ROADMAP_TRAJOPT}, "
                            f"not {args.planner}")
     if args.case is not None and args.cases is None and args.case >= SHOW_CACHED_CASES:
