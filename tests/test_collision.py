@@ -4,7 +4,6 @@ import numpy as np
 import pytest
 
 from chekhov import Shape
-from chekhov.collision.codes import OBSTACLE
 from chekhov.collision.exact import densify
 from chekhov.collision.fast import pinocchio_joint_placements
 
@@ -60,7 +59,7 @@ def test_contacts_normals_match_finite_differences(world_of, rng):
     q = None
     for cand in w.robot.sample_uniform(rng, 500):
         c = fast.contacts(cand, 0.05)
-        if len(c) and np.any(c.source == OBSTACLE):
+        if len(c) and np.any(c.kind == 0):
             q = cand
             break
     assert q is not None
@@ -68,14 +67,14 @@ def test_contacts_normals_match_finite_differences(world_of, rng):
     centers = fast.sphere_centers(q)
     from chekhov.collision import kernels
 
-    env = fast.packed.obstacles
-    for i in np.flatnonzero(c.source == OBSTACLE)[:10]:
+    env = fast._env
+    for i in np.flatnonzero(c.kind == 0)[:10]:
         s, o = c.sphere[i], c.other[i]
         x = centers[s]
         eps = 1e-6
-        grad = np.array([(kernels.signed_distance(env.kind[o], env.R[o], env.p[o], env.size[o],
+        grad = np.array([(kernels.signed_distance(env[0][o], env[1][o], env[2][o], env[3][o],
                                                   x + eps * e)
-                          - kernels.signed_distance(env.kind[o], env.R[o], env.p[o], env.size[o],
+                          - kernels.signed_distance(env[0][o], env[1][o], env[2][o], env[3][o],
                                                     x - eps * e)) / (2 * eps)
                          for e in np.eye(3)])
         assert np.allclose(grad, c.normal[i], atol=1e-4)
@@ -233,7 +232,7 @@ def test_certified_motion_checks_equal_the_bisection_checks(world_of):
     A, B = Q[:300], Q[300:600]
     for Y in (B, A + 0.3 * (B - A)):
         got = w.fast.motions_valid(A, Y, 0.02)
-        ref = validity.motions_valid(A, Y, 0.02, w.fast.packed)
+        ref = validity.motions_valid(A, Y, 0.02, *w.fast._args())
         np.testing.assert_array_equal(got, ref)
         assert 0 < got.mean() < 1
 
@@ -245,9 +244,8 @@ def test_group_order_and_coarse_grids_do_not_change_decisions(world_of, rng):
 
     fast = world_of("shelf_boxes").fast
     Q = fast._as_batch(fast.robot.sample_uniform(rng, 20000))
-    g = fast.packed.grids
-    assert sorted(g.order.tolist()) == list(range(len(g.fixed)))
-    plain = fast.packed._replace(grids=g._replace(
-        coarse_h=g.h, inv_coarse_h=g.inv_h, coarse=g.fine,
-        order=np.arange(len(g.fixed), dtype=np.int64)))
-    np.testing.assert_array_equal(validity.valid_batch(Q, plain), fast.valid(Q))
+    args = list(fast._args())
+    origin, h, delta, V, gfix, _, _, order = args[8]
+    assert sorted(order.tolist()) == list(range(len(gfix)))
+    args[8] = (origin, h, delta, V, gfix, h, V, np.arange(len(gfix), dtype=np.int64))
+    np.testing.assert_array_equal(validity.valid_batch(Q, *args), fast.valid(Q))

@@ -10,36 +10,16 @@ configuration), the group stays clear for floor(d / D_g) substeps. Self-collisio
 certificates the same way, against D_a + D_b. A configuration whose groups and pairs are all
 certified is free for the fast checker; any other is checked in full by
 :func:`validity.config_collides`. So the answer is the same as checking every configuration
-with the fast checker, at a fraction of the cost. The lever-arm bounds L_gi are
-``PackedWorld.groups.lever`` (:func:`lever_arms`).
+with the fast checker, at a fraction of the cost.
 """
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import numpy as np
 from numba import njit
 
-from chekhov.collision.codes import NONE
-from chekhov.collision.kernels import grid_cell, signed_distance
-from chekhov.collision.validity import config_collides, make_work
-from chekhov.robot.chain_kinematics import chain_fk
-
-
-class WalkWork(NamedTuple):
-    """Work arrays of :func:`_walk`: until (G,) / puntil (P,) int64, the last substep each
-    group / self pair is certified free to; step_len (G,) m, the most a group's centre moves
-    in one substep; q (K,); Rc (K, 3, 3), pc (K, 3), gwc (G, 3): joint poses and group
-    centres."""
-
-    until: np.ndarray
-    puntil: np.ndarray
-    step_len: np.ndarray
-    q: np.ndarray
-    Rc: np.ndarray
-    pc: np.ndarray
-    gwc: np.ndarray
+from chekhov.collision.kernels import chain_fk, grid_cell, signed_distance
+from chekhov.collision.validity import _work, config_collides
 
 
 @njit(cache=True, inline="always")
@@ -51,10 +31,9 @@ def _grid_lower_bound(origin, inv_h, h, delta, values, m, c):  # pragma: no cove
 
 
 @njit(cache=True, inline="always")
-def _group_centres(q, chain, groups, Rc, pc, gwc):  # pragma: no cover - compiled
+def _group_centres(q, chain, gc, gj, Rc, pc, gwc):  # pragma: no cover - compiled
     """World centre gwc[g] of each group's bounding sphere at q (runs the chain FK)."""
-    chain_fk(q, chain, Rc, pc)
-    gc, gj = groups.centre, groups.joint
+    chain_fk(q, chain[0], chain[1], chain[2], chain[3], Rc, pc)
     for g in range(gc.shape[0]):
         j = gj[g]
         for a in range(3):
@@ -62,33 +41,20 @@ def _group_centres(q, chain, groups, Rc, pc, gwc):  # pragma: no cover - compile
                          + Rc[j, a, 2] * gc[g, 2] + pc[j, a])
 
 
-@njit(cache=True, inline="always")
-def _group_clearance(world, g, c):  # pragma: no cover - compiled
-    """A lower bound on the clearance (m) of group g's bounding sphere, centred at c, from the
-    static obstacles and its fixed parts (grids) and the dynamic obstacles (exact)."""
-    grids, dyn = world.grids, world.dynamic
-    d = _grid_lower_bound(grids.origin, grids.inv_h, grids.h, grids.delta, grids.fine, 0, c)
-    fg = grids.fixed[g]
-    if fg >= 0:
-        d = min(d, _grid_lower_bound(grids.origin, grids.inv_h, grids.h, grids.delta,
-                                     grids.fine, fg, c))
-    for o in range(dyn.kind.shape[0]):
-        d = min(d, signed_distance(dyn.kind[o], dyn.R[o], dyn.p[o], dyn.size[o], c))
-    return d - world.groups.radius[g]
-
-
 @njit(cache=True)
-def _walk(P0, P1, n, m_first, m_last, check_ends, world, work, ww
-          ):  # pragma: no cover - compiled
+def _walk(P0, P1, n, m_first, m_last, check_ends, lever, chain, spheres, groups, static, dyn,
+          fixed, fixed_csr, self_pairs, grids, gexact, rin, work, until, puntil, step_len, q,
+          Rc, pc, gwc):  # pragma: no cover - compiled
     """Configurations P0 + (m / n)(P1 - P0) for m = m_first … m_last, in order: the first m
-    the fast checker calls colliding, or ``NONE``. Clearance certificates skip the rest (see
-    the module docstring); with ``check_ends`` False, m = 0 and m = n only give certificates.
-    ``work``: a ``validity.Work``; ``ww``: a :class:`WalkWork`."""
+    the fast checker calls colliding, or -1. Clearance certificates skip the rest (see the
+    module docstring); with ``check_ends`` False, m = 0 and m = n only give certificates."""
     K = P0.shape[0]
-    groups = world.groups
-    gr, lever, self_pairs = groups.radius, groups.lever, groups.self_pairs
-    until, puntil, step_len, q, Rc, pc, gwc = ww
+    _, gc, gr, gj = groups
+    dk, dR, dp, ds = dyn
+    origin, h, delta, V, gfix = grids[:5]
+    ih = 1.0 / h
     G = gr.shape[0]
+    Rb, pb, cw, gw, done, cand, pend = work
     for g in range(G):
         until[g] = -1
         s_ = 0.0
@@ -106,9 +72,14 @@ def _walk(P0, P1, n, m_first, m_last, check_ends, world, work, ww
             if until[g] >= m:
                 continue
             if chain_needed:
-                _group_centres(q, world.chain, groups, Rc, pc, gwc)
+                _group_centres(q, chain, gc, gj, Rc, pc, gwc)
                 chain_needed = False
-            d = _group_clearance(world, g, gwc[g])
+            d = _grid_lower_bound(origin, ih, h, delta, V, 0, gwc[g])
+            if gfix[g] >= 0:
+                d = min(d, _grid_lower_bound(origin, ih, h, delta, V, gfix[g], gwc[g]))
+            for o in range(dk.shape[0]):
+                d = min(d, signed_distance(dk[o], dR[o], dp[o], ds[o], gwc[g]))
+            d -= gr[g]
             if d > 0.0:
                 until[g] = m + int(d / step_len[g])
             else:
@@ -119,7 +90,7 @@ def _walk(P0, P1, n, m_first, m_last, check_ends, world, work, ww
             a = self_pairs[k, 0]
             b = self_pairs[k, 1]
             if chain_needed:
-                _group_centres(q, world.chain, groups, Rc, pc, gwc)
+                _group_centres(q, chain, gc, gj, Rc, pc, gwc)
                 chain_needed = False
             d = np.sqrt((gwc[a, 0] - gwc[b, 0]) ** 2 + (gwc[a, 1] - gwc[b, 1]) ** 2
                         + (gwc[a, 2] - gwc[b, 2]) ** 2) - gr[a] - gr[b]
@@ -131,52 +102,61 @@ def _walk(P0, P1, n, m_first, m_last, check_ends, world, work, ww
             continue
         if not check_ends and (m == 0 or m == n):
             continue
-        if config_collides(q, world, work):
+        if config_collides(q, chain, spheres, groups, static, dyn, fixed, fixed_csr,
+                           self_pairs, grids, gexact, rin, Rb, pb, cw, gw, done, cand, pend):
             return m
-    return NONE
+    return -1
 
 
 @njit(cache=True)
-def make_walk_work(K, world):  # pragma: no cover - compiled
-    """A :class:`WalkWork` for ``world`` and K joints."""
-    G = world.groups.radius.shape[0]
-    return WalkWork(np.empty(G, dtype=np.int64),
-                    np.empty(world.groups.self_pairs.shape[0], dtype=np.int64), np.empty(G),
-                    np.empty(K), np.empty((K, 3, 3)), np.empty((K, 3)), np.empty((G, 3)))
+def _buffers(K, spheres, groups, static, dyn, fixed, self_pairs):  # pragma: no cover
+    G = groups[2].shape[0]
+    return (_work(K, spheres, groups, static, dyn, fixed, self_pairs),
+            np.empty(G, dtype=np.int64), np.empty(self_pairs.shape[0], dtype=np.int64),
+            np.empty(G), np.empty(K), np.empty((K, 3, 3)), np.empty((K, 3)), np.empty((G, 3)))
 
 
 @njit(cache=True)
-def first_dense_collision(P, substeps, start, world):  # pragma: no cover - compiled
+def first_dense_collision(P, substeps, start, lever, chain, spheres, groups, static, dyn,
+                          fixed, fixed_csr, self_pairs, grids, gexact, rin
+                          ):  # pragma: no cover - compiled
     """Index (>= ``start``) of the first configuration of the densified path that the fast
-    checker calls colliding, or ``NONE``. The densified path has ``substeps`` configurations
-    between each pair of waypoints of P (T, K), waypoints included (the order of
-    :func:`exact.densify`); configurations before index ``start`` are not looked at."""
+    checker calls colliding, or -1. The densified path has ``substeps`` configurations between
+    each pair of waypoints of P (T, K), waypoints included (the order of
+    :func:`exact.densify`); configurations before index ``start`` are not looked at.
+    ``lever`` (G, K): bound on the distance (m) from joint i to group g's centre, 0 when joint
+    i does not move the group."""
     T, K = P.shape
-    work = make_work(K, world)
-    ww = make_walk_work(K, world)
+    work, until, puntil, step_len, q, Rc, pc, gwc = _buffers(K, spheres, groups, static, dyn,
+                                                            fixed, self_pairs)
     n = substeps + 1
     t_first = start // n
     for t in range(t_first, T - 1):
         m_first = start - t * n if t == t_first else 0
-        m = _walk(P[t], P[t + 1], n, m_first, n - 1, True, world, work, ww)
+        m = _walk(P[t], P[t + 1], n, m_first, n - 1, True, lever, chain, spheres, groups,
+                  static, dyn, fixed, fixed_csr, self_pairs, grids, gexact, rin, work, until,
+                  puntil, step_len, q, Rc, pc, gwc)
         if m >= 0:
             return t * n + m
     if start > (T - 1) * n:
-        return NONE
-    m = _walk(P[T - 1], P[T - 1], 0, 0, 0, True, world, work, ww)
-    return (T - 1) * n if m >= 0 else NONE
+        return -1
+    m = _walk(P[T - 1], P[T - 1], 0, 0, 0, True, lever, chain, spheres, groups, static, dyn,
+              fixed, fixed_csr, self_pairs, grids, gexact, rin, work, until, puntil, step_len,
+              q, Rc, pc, gwc)
+    return (T - 1) * n if m >= 0 else -1
 
 
 @njit(cache=True)
-def motions_valid_dense(Q0, Q1, resolution, world):  # pragma: no cover - compiled
+def motions_valid_dense(Q0, Q1, resolution, lever, chain, spheres, groups, static, dyn, fixed,
+                        fixed_csr, self_pairs, grids, gexact, rin):  # pragma: no cover
     """Whether each straight motion Q0[i] → Q1[i] is free at the interior steps k / n,
     n = ceil(length / resolution): the same configurations and answer as
     :func:`validity.motions_valid`, visited in order with clearance certificates instead of in
     bisection order. End points give certificates but are not checked."""
     K = Q0.shape[1]
-    work = make_work(K, world)
-    ww = make_walk_work(K, world)
-    q = ww.q
+    work, until, puntil, step_len, q, Rc, pc, gwc = _buffers(K, spheres, groups, static, dyn,
+                                                            fixed, self_pairs)
+    Rb, pb, cw, gw, done, cand, pend = work
     out = np.empty(Q0.shape[0], dtype=np.bool_)
     for i in range(Q0.shape[0]):
         d = 0.0
@@ -191,13 +171,17 @@ def motions_valid_dense(Q0, Q1, resolution, world):  # pragma: no cover - compil
             if 0 < k < n:
                 for a in range(K):
                     q[a] = Q0[i, a] + (k / n) * (Q1[i, a] - Q0[i, a])
-                if config_collides(q, world, work):
+                if config_collides(q, chain, spheres, groups, static, dyn, fixed, fixed_csr,
+                                   self_pairs, grids, gexact, rin, Rb, pb, cw, gw, done, cand,
+                                   pend):
                     hit = True
                     break
         if hit:
             out[i] = False
             continue
-        out[i] = _walk(Q0[i], Q1[i], n, 0, n - 1, False, world, work, ww) < 0
+        out[i] = _walk(Q0[i], Q1[i], n, 0, n - 1, False, lever, chain, spheres, groups,
+                       static, dyn, fixed, fixed_csr, self_pairs, grids, gexact, rin, work,
+                       until, puntil, step_len, q, Rc, pc, gwc) < 0
     return out
 
 
