@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import time
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 from dataclasses import replace
 from typing import TYPE_CHECKING, Protocol
 
@@ -18,8 +19,8 @@ from chekhov.errors import TrajectoryError
 from chekhov.paths import path_length, resample_path
 from chekhov.planners.certify import certify
 from chekhov.planners.query import PlanQuery, make_query
-from chekhov.planners.result import PlanResult
-from chekhov.planners.status import PlanStatus
+from chekhov.planners.result import PlanResult, Solution
+from chekhov.planners.status import PlanStatus, Stage
 from chekhov.planners.timed import timed_trajectory
 from chekhov.robot.goal import Goal
 from chekhov.timing import TimingConfig
@@ -41,8 +42,10 @@ class Planner(Protocol):
 
     name: str
 
-    def plan(self, q_start: Array, goal: Goal, time_limit_s: float = 10.0) -> PlanResult:
-        """Plan from q_start (K,) to the goal within time_limit_s seconds."""
+    def plan(self, q_start: Array, goal: Goal, time_limit_s: float = 10.0, *,
+             on_solution: Callable[[Solution], None] | None = None) -> PlanResult:
+        """Plan from q_start (K,) to the goal within time_limit_s seconds; ``on_solution``
+        gets each certified answer as it is found."""
         ...
 
 
@@ -61,10 +64,14 @@ class PlannerBase(ABC):
     """Set it (e.g. ``TimingConfig()``) and every success carries its timed trajectory
     (``PlanResult.trajectory``, made after the certified path, outside the time limit)."""
 
-    def plan(self, q_start: Array, goal: Goal, time_limit_s: float = 10.0) -> PlanResult:
-        """Plan from q_start (K,) rad to the goal within time_limit_s (s; inf for none)."""
+    def plan(self, q_start: Array, goal: Goal, time_limit_s: float = 10.0, *,
+             on_solution: Callable[[Solution], None] | None = None) -> PlanResult:
+        """Plan from q_start (K,) rad to the goal within time_limit_s (s; inf for none).
+        ``on_solution`` is called with each certified answer as it is found (an anytime
+        planner's first path and each improvement; once for the others)."""
         query = make_query(self.world.robot, q_start, goal, time_limit_s)
-        query = replace(query, time_limit_s=self._budget_s(query.time_limit_s))
+        query = replace(query, time_limit_s=self._budget_s(query.time_limit_s),
+                        on_solution=on_solution)
         bad_end = self._end_in_collision(query)
         if bad_end is not None:
             result = PlanResult(False, None, bad_end, 0.0,
@@ -72,6 +79,12 @@ class PlannerBase(ABC):
         else:
             result = self._plan(query)
         result = certify(self.world, query, result)
+        if result.success and result.path is not None and not result.solutions:
+            found = Solution(result.path, result.time_s, result.seed_from or Stage.SEARCH,
+                             path_length(result.path))
+            result = replace(result, solutions=(found,))
+            if on_solution is not None:
+                on_solution(found)
         if self.timing is not None and result.success and result.path is not None:
             result = self._timed(result, result.path, self.timing)
         return result

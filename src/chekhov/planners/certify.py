@@ -15,6 +15,7 @@ is certified when
   this very path, substeps and obstacle version (a planner that already ran it), and
 * it arrived by the deadline: a path found after ``time_limit_s`` is a "timeout". The
   certification's own time (``timing_s["certify"]``) counts; it runs only on a found path.
+  An anytime planner's answer arrived when it certified it (``result.solutions[-1]``).
 
 An answer that fails keeps its path in ``info["rejected_path"]`` and gets the status of the
 first failed check (:class:`PlanStatus` BAD_PATH, START_MISMATCH, JOINT_LIMITS, GOAL_UNMET,
@@ -57,7 +58,9 @@ def certify(world: World, query: PlanQuery, result: PlanResult) -> PlanResult:
         return _finish(result, query, None, 0.0)
     t = time.perf_counter()
     why = path_problem(world, query, result.path, result.certificate)
-    if not why and time.perf_counter() > query.deadline:
+    # an anytime planner's answer counts from when it certified it (its last solution)
+    found = query.t0 + result.solutions[-1].time_s if result.solutions else time.perf_counter()
+    if not why and found > query.deadline:
         why = (PlanStatus.TIMEOUT, "the path was found after the time limit")
     return _finish(result, query, why, time.perf_counter() - t)
 
@@ -67,30 +70,40 @@ def path_problem(world: World, query: PlanQuery, path: Array | None,
                  ) -> tuple[PlanStatus, str] | None:
     """(status, reason) of the first check ``path`` fails for ``query``; None when it passes.
     A ``certificate`` that covers the path stands for the collision check."""
+    return check_path(world, query, path, certificate)[0]
+
+
+def check_path(world: World, query: PlanQuery, path: Array | None,
+               certificate: PathCertificate | None = None
+               ) -> tuple[tuple[PlanStatus, str] | None, PathCertificate | None]:
+    """:func:`path_problem`, and the exact check's certificate for the path when it passes
+    (``certificate`` itself when that covered it)."""
     robot = world.robot
     P = None if path is None else np.asarray(path, dtype=float)
     if P is None or P.ndim != 2 or P.shape[1] != robot.dof or len(P) == 0 \
             or not np.all(np.isfinite(P)):
         shape = None if P is None else P.shape
-        return PlanStatus.BAD_PATH, f"expected a finite (T >= 1, {robot.dof}) path, got {shape}"
+        return (PlanStatus.BAD_PATH,
+                f"expected a finite (T >= 1, {robot.dof}) path, got {shape}"), None
     if np.abs(P[0] - query.q_start).max() > START_TOLERANCE_RAD:
-        return PlanStatus.START_MISMATCH, "the path does not begin at the start configuration"
+        return (PlanStatus.START_MISMATCH,
+                "the path does not begin at the start configuration"), None
     inside = robot.within_limits(P, LIMIT_TOLERANCE_RAD)
     if not inside.all():
         return (PlanStatus.JOINT_LIMITS,
-                f"waypoint {int(np.argmin(inside))} is outside the joint limits")
+                f"waypoint {int(np.argmin(inside))} is outside the joint limits"), None
     unmet = goal_error(world, query, P[-1])
     if unmet:
-        return PlanStatus.GOAL_UNMET, unmet
+        return (PlanStatus.GOAL_UNMET, unmet), None
     if certificate is not None and certificate.covers(P, SUBSTEPS, world.fast):
-        return None
-    valid, _ = exact_path_decision(world.fast, world.exact, P, SUBSTEPS, query.deadline)
+        return None, certificate
+    valid, proof = exact_path_decision(world.fast, world.exact, P, SUBSTEPS, query.deadline)
     if valid is None:
-        return PlanStatus.TIMEOUT, "the time limit passed during the collision check"
+        return (PlanStatus.TIMEOUT, "the time limit passed during the collision check"), None
     if not valid:
         return (PlanStatus.COLLISION,
-                f"in collision at {SUBSTEPS} substeps per segment (exact checker)")
-    return None
+                f"in collision at {SUBSTEPS} substeps per segment (exact checker)"), None
+    return None, proof
 
 
 def goal_error(world: World, query: PlanQuery, q: Array) -> str:

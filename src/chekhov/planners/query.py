@@ -13,7 +13,9 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -21,6 +23,9 @@ from numpy.typing import NDArray
 from chekhov.errors import PlanningInputError, RobotError
 from chekhov.robot.goal import Goal
 from chekhov.robot.robot import Robot
+
+if TYPE_CHECKING:
+    from chekhov.planners.result import Solution
 
 Array = NDArray[np.float64]
 
@@ -38,6 +43,8 @@ class PlanQuery:
         time_limit_s: s, >= 0 (inf: no limit; 0: answer "timeout" at once).
         t0: ``time.perf_counter()`` when the query was made (s).
         clamped: which of "start" / "goal" were clamped onto the limits (within the tolerance).
+        on_solution: called with each certified :class:`~chekhov.planners.result.Solution`
+            as the planner finds it (``plan(..., on_solution=...)``); None: not called.
     """
 
     q_start: Array
@@ -45,6 +52,7 @@ class PlanQuery:
     time_limit_s: float
     t0: float
     clamped: tuple[str, ...] = ()
+    on_solution: Callable[[Solution], None] | None = None
 
     @property
     def deadline(self) -> float:

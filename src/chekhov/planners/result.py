@@ -16,6 +16,23 @@ Array = NDArray[np.float64]
 
 
 @dataclass(frozen=True, eq=False)
+class Solution:
+    """One certified answer as a planner found it (anytime planners find several, each
+    shorter than the one before).
+
+    Attributes:
+        path: (T, K) rad, certified (start, limits, goal, exact check at 100 substeps).
+        time_s: s from the start of ``plan()`` to the moment it was certified.
+        stage: the stage that produced it. length_rad: its joint-space length.
+    """
+
+    path: Array
+    time_s: float
+    stage: Stage
+    length_rad: float
+
+
+@dataclass(frozen=True, eq=False)
 class PlanResult:
     """What a planner returns.
 
@@ -36,6 +53,8 @@ class PlanResult:
             ``stages`` says whether it found one); None for planners without a seed.
         trajectory: ``path`` timed (:class:`~chekhov.trajectory.JointTrajectory`, certified
             like the path) when the planner's ``timing`` is set; None otherwise.
+        solutions: every certified answer in the order found, the last being ``path`` (one
+            for planners that answer once; :attr:`first_solution_s` is the first's time).
     """
 
     success: bool
@@ -49,6 +68,7 @@ class PlanResult:
     stages: tuple[StageReport, ...] = ()
     seed_from: Stage | None = None
     trajectory: JointTrajectory | None = None
+    solutions: tuple[Solution, ...] = ()
 
     def __post_init__(self) -> None:
         if not isinstance(self.status, PlanStatus):
@@ -57,6 +77,13 @@ class PlanResult:
     def stage(self, stage: Stage) -> StageReport | None:
         """The last report of ``stage``, or None when it did not run."""
         return next((r for r in reversed(self.stages) if r.stage == stage), None)
+
+    @property
+    def first_solution_s(self) -> float:
+        """s from the start of ``plan()`` to the first certified answer; nan on failure."""
+        if not self.success:
+            return float("nan")
+        return self.solutions[0].time_s if self.solutions else self.time_s
 
     @property
     def seed_report(self) -> StageReport | None:

@@ -61,8 +61,10 @@ class Stage(StrEnum):
     ROADMAP_SEED = "roadmap_seed"      # routes through the roadmap
     SEED = "seed"                      # another planner's path (X + TrajOpt)
     SHORTCUT = "shortcut"
+    ROUTES = "routes"                  # more roadmap routes (other goal IK solutions), shortcut
     OPTIMISE = "optimise"              # TrajOpt from the seed
     RETRY = "retry"                    # TrajOpt again towards the seed's end configuration
+    REPAIR = "repair"                  # a tree into the roadmap when it could not answer
     FALLBACK = "fallback"              # bounded straight-line TrajOpt when the roadmap failed
     SEARCH = "search"                  # a sampling planner's search
 

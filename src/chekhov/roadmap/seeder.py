@@ -16,6 +16,7 @@ from chekhov.roadmap.errors import RoadmapMismatchError
 from chekhov.roadmap.graph import Roadmap
 from chekhov.roadmap.kpaths import KShortestPaths
 from chekhov.roadmap.nearest import NearestNodes, nearest_poses
+from chekhov.roadmap.repair import RepairConfig, RepairResult, TreeRepair
 from chekhov.roadmap.search import astar, path_edges, warm_up
 from chekhov.roadmap.validity import INVALID, RoadmapValidity
 from chekhov.robot.goal import Goal
@@ -52,6 +53,8 @@ class SeederConfig:
         max_pair_tries: (start node, goal node) pairs tried when dynamic obstacles block paths.
         lazy_iterations: A* rounds of the lazy search on the remaining graph.
         resolution: rad, motion check step; None: the roadmap's.
+        repair: the bidirectional tree that connects into the roadmap when it cannot
+            answer alone (:mod:`chekhov.roadmap.repair`, :meth:`RoadmapSeeder.repair`).
     """
 
     n_goal_ik: int = 3
@@ -70,6 +73,7 @@ class SeederConfig:
     max_pair_tries: int = 6
     lazy_iterations: int = 60
     resolution: float | None = None
+    repair: RepairConfig = field(default_factory=RepairConfig)
 
 
 @dataclass(frozen=True, eq=False)
@@ -137,6 +141,8 @@ class RoadmapSeeder:
         self.connector = Connector(world, roadmap, self.validity, self.config, self.resolution,
                                    P, distal)
         warm_up()
+        self.tree_repair = TreeRepair(world, roadmap, self.validity, self._route_nodes,
+                                      self.resolution, cfg.repair)
         self.goal_ik.warmup()
         # compile (cold cache) or load every kernel of a query now, not in the first timed
         # one: a pose query between two nodes (whose ends normally connect directly)
@@ -232,6 +238,18 @@ class RoadmapSeeder:
         checks = {k: self.validity.checks[k] - checks0[k] for k in checks0}
         return [SeedResult(True, "solved", path, nodes, q_goal, timing,
                            {**info, "checks": checks}) for path, nodes, q_goal, info in found]
+
+    def repair(self, q_start: Array, Q_goal: Array, deadline: float) -> RepairResult:
+        """When :meth:`seeds` found nothing (no connection, or every route cut): a path
+        q_start (K,) → a row of Q_goal (n, K) by a bidirectional tree that connects into the
+        roadmap, searching until ``deadline`` (``time.perf_counter()`` value, s)."""
+        self.validity.refresh()
+        return self.tree_repair.search(np.asarray(q_start, dtype=float),
+                                       np.atleast_2d(np.asarray(Q_goal, dtype=float)), deadline)
+
+    def _route_nodes(self, s: int, g: int, deadline: float) -> IntArray | None:
+        found = self._roadmap_path(s, g, {"search": 0.0, "validate": 0.0}, deadline)
+        return None if found is None else found[0]
 
     def _route(self, q_start: Array, Q_goal: Array, starts: list[Connection],
                goals: list[tuple[int, Connection]], timing: dict[str, float],

@@ -1,0 +1,92 @@
+"""One planning call of an anytime planner: its stage reports, timing, and the certified
+answers it offers as it goes (:class:`AnytimeRun`).
+
+A stage that produces a path offers it; the offer is certified on the spot by the same
+function that certifies every planner's answer (:func:`~chekhov.planners.certify.path_problem`:
+start, joint limits, goal tolerance, exact check at 100 substeps — a fast-free path with a
+conservative sphere model needs no coal call), and when it passes and is shorter than the best
+so far it becomes the answer: the caller's ``on_solution`` hears of it at once, and the result
+lists every solution with the time it came.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from chekhov.collision.path_check import PathCertificate
+from chekhov.paths import path_length
+from chekhov.planners.certify import check_path
+from chekhov.planners.result import PlanResult, Solution
+from chekhov.planners.status import PlanStatus, Stage, StageReport
+
+if TYPE_CHECKING:
+    from chekhov.planners.query import PlanQuery
+    from chekhov.world import World
+
+Array = NDArray[np.float64]
+
+
+class AnytimeRun:
+    """One call's query, timing breakdown (s), stage reports and certified solutions."""
+
+    def __init__(self, world: World, query: PlanQuery) -> None:
+        self.world = world
+        self.query = query
+        self.timing: dict[str, float] = {}
+        self.stages: list[StageReport] = []
+        self.solutions: list[Solution] = []
+        self.best_certificate: PathCertificate | None = None
+        self.best_seed: Array | None = None
+        self.best_info: dict[str, object] = {}
+        self.rejected: list[tuple[Stage, str]] = []
+
+    @property
+    def best(self) -> Solution | None:
+        return self.solutions[-1] if self.solutions else None
+
+    def report(self, stage: Stage, status: PlanStatus, time_s: float,
+               path: Array | None = None, detail: dict[str, object] | None = None) -> None:
+        self.stages.append(StageReport(stage, status, time_s, path, detail or {}))
+
+    def offer(self, path: Array, stage: Stage, *, seed: Array | None = None,
+              certificate: PathCertificate | None = None,
+              info: dict[str, object] | None = None) -> bool:
+        """Certify ``path`` (T, K) now; when it passes and is shorter than the best so far,
+        make it the answer (and tell ``on_solution``). True when it became the answer."""
+        length = path_length(path)
+        best = self.best
+        if best is not None and length >= best.length_rad - 1e-9:
+            return False
+        t = time.perf_counter()
+        why, certificate = check_path(self.world, self.query, path, certificate)
+        self.timing["offers"] = self.timing.get("offers", 0.0) + time.perf_counter() - t
+        if why is not None:
+            self.rejected.append((stage, f"{why[0].value}: {why[1]}"))
+            return False
+        found = Solution(np.asarray(path), time.perf_counter() - self.query.t0, stage, length)
+        self.solutions.append(found)
+        self.best_certificate, self.best_seed = certificate, seed
+        self.best_info = dict(info or {})
+        if self.query.on_solution is not None:
+            self.query.on_solution(found)
+        return True
+
+    def result(self, failure: PlanStatus, info: dict[str, object] | None = None,
+               seed_from: Stage | None = None) -> PlanResult:
+        """The best solution as a success, else a failure with status ``failure``."""
+        info = {**(info or {}), **self.best_info}
+        if self.rejected:
+            info["rejected_offers"] = "; ".join(f"{s}: {w}" for s, w in self.rejected)
+        best = self.best
+        elapsed = time.perf_counter() - self.query.t0
+        if best is None:
+            return PlanResult(False, None, failure, elapsed, self.timing, info=info,
+                              stages=tuple(self.stages), seed_from=seed_from)
+        return PlanResult(True, best.path, PlanStatus.SOLVED, elapsed, self.timing,
+                          seed=self.best_seed, info=info, certificate=self.best_certificate,
+                          stages=tuple(self.stages), seed_from=seed_from,
+                          solutions=tuple(self.solutions))
