@@ -259,23 +259,25 @@ def test_progress_logs_every_tenth_and_at_least_every_interval_off_a_terminal():
     assert len(out.getvalue().splitlines()) == 100 and "(100 failed)" in out.getvalue()
 
 
-def test_fallback_to_seed_is_read_from_the_stages():
-    """The record's fallback flag comes from the typed stages, not from ``info``."""
-    from chekhov.bench.worker import fell_back_to_seed
-    from chekhov.planners.result import PlanResult
+def test_fallback_to_seed_is_read_from_the_stages_and_solutions():
+    """The fallback flag comes from the typed result (stages, solutions), not from ``info``."""
+    from chekhov.planners.result import PlanResult, Solution
     from chekhov.planners.status import PlanStatus, Stage, StageReport
 
-    def result(seed_from, *stages):
+    def result(answer_stage, *stages):
         reports = tuple(StageReport(s, PlanStatus.SOLVED, 0.0) for s in stages)
+        sols = () if answer_stage is None else (
+            Solution(np.zeros((2, 7)), 0.001, answer_stage, 0.0),)
         return PlanResult(True, np.zeros((2, 7)), PlanStatus.SOLVED, 0.0, stages=reports,
-                          seed_from=seed_from, info={"fallback_to_seed": "ignored"})
+                          seed_from=Stage.ROADMAP_SEED, info={"fallback_to_seed": "ignored"},
+                          solutions=sols)
 
-    assert fell_back_to_seed(result(None, Stage.SEARCH)) is None        # no TrajOpt stage
-    assert fell_back_to_seed(result(Stage.ROADMAP_SEED, Stage.ROADMAP_SEED, Stage.OPTIMISE,
-                                    Stage.FALLBACK)) is True           # the seed returned
-    assert fell_back_to_seed(result(Stage.ROADMAP_SEED, Stage.ROADMAP_SEED,
-                                    Stage.OPTIMISE)) is False
-    assert fell_back_to_seed(result(Stage.FALLBACK, Stage.ROADMAP_SEED,
-                                    Stage.FALLBACK)) is False          # straight-line TrajOpt
-    assert fell_back_to_seed(result(Stage.STRAIGHT_LINE, Stage.IK, Stage.STRAIGHT_LINE,
-                                    Stage.OPTIMISE)) is False
+    assert result(Stage.SEARCH, Stage.SEARCH).fell_back_to_seed is None  # no TrajOpt stage
+    assert result(Stage.SHORTCUT, Stage.ROADMAP_SEED, Stage.SHORTCUT,
+                  Stage.OPTIMISE).fell_back_to_seed is True           # the seed returned
+    assert result(Stage.OPTIMISE, Stage.ROADMAP_SEED, Stage.SHORTCUT,
+                  Stage.OPTIMISE).fell_back_to_seed is False
+    assert result(Stage.FALLBACK, Stage.ROADMAP_SEED,
+                  Stage.FALLBACK).fell_back_to_seed is False          # straight-line TrajOpt
+    assert result(Stage.ROUTES, Stage.ROADMAP_SEED, Stage.SHORTCUT, Stage.ROUTES,
+                  Stage.STRAIGHT_LINE, Stage.OPTIMISE).fell_back_to_seed is True

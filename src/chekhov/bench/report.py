@@ -220,10 +220,11 @@ def _both(ours: str, theirs: str) -> str:
 
 def _summary_table(stats: Stats) -> str:
     L = ["| scene | planner | cases | failure rate | mean / median / p95 runtime (s) | "
-         "mean / median path length (rad) | mean / median motion duration (s) | collision "
+         "median / p95 first solution (s) | mean / median path length (rad) | "
+         "mean / median motion duration (s) | collision "
          "rate (exact) | Roadmap+TrajOpt runtime ratio mean / median | Roadmap+TrajOpt "
          "length ratio, common cases |",
-         "|---|---|---|---|---|---|---|---|---|---|"]
+         "|---|---|---|---|---|---|---|---|---|---|---|"]
     for (scene, limit), per in sorted(stats.items()):
         rat = runtime_ratios(per)
         lrat = length_ratios(per)
@@ -233,6 +234,7 @@ def _summary_table(stats: Stats) -> str:
             L.append(f"| {_scene(scene, limit, stats)} | {n} | {s.cases} | "
                      f"{_pc(s.failure_rate)} | {_s(s.mean_runtime_s)} / "
                      f"{_s(s.median_runtime_s)} / {_s(s.p95_runtime_s)} | "
+                     f"{_s(s.median_first_solution_s)} / {_s(s.p95_first_solution_s)} | "
                      f"{_s(s.mean_path_length_rad, 2)} / {_s(s.median_path_length_rad, 2)} | "
                      f"{_s(s.mean_duration_s, 2)} / {_s(s.median_duration_s, 2)} | "
                      f"{_pc(s.collision_rate)} | "

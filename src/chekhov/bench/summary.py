@@ -12,6 +12,9 @@ Definitions (every run counts, failures included, unless said otherwise):
 * ``mean_duration_s`` / ``median_duration_s``: the returned path's motion time, timed by
   :func:`chekhov.planners.timed.timed_trajectory` (toppra under the URDF velocity limits and
   3 rad/s², else ruckig), over successful runs; not part of the runtime.
+* ``median_first_solution_s`` / ``p95_first_solution_s``: s from the start of ``plan`` to
+  its first certified answer (an anytime planner's first path; the answer's time for the
+  others), over successful runs.
 * ``collision_rate``: share of returned paths the exact check finds in collision (0 when
   nothing was returned).
 * With a TrajOpt stage: ``mean_trajopt_time_s`` (after the seed), ``mean_seed_length_rad``,
@@ -51,6 +54,8 @@ class PlannerStats:
     collision_rate: float
     mean_duration_s: float = math.nan
     median_duration_s: float = math.nan
+    median_first_solution_s: float = math.nan
+    p95_first_solution_s: float = math.nan
     mean_trajopt_time_s: float = math.nan
     median_trajopt_time_s: float = math.nan
     mean_seed_time_s: float = math.nan
@@ -88,6 +93,8 @@ def _stats(scene: str, planner: str, limit: float, rs: list[dict[str, Any]]) -> 
     lengths = np.array([r["solution_length"] for r in ok], dtype=float)
     durations = np.array([r["info"]["duration_s"] for r in ok
                           if "duration_s" in (r.get("info") or {})], dtype=float)
+    first = np.array([r["info"]["first_solution_s"] for r in ok
+                      if "first_solution_s" in (r.get("info") or {})], dtype=float)
     returned = [r for r in rs if r["solved"]]
     coll = sum(1 for r in returned if r["exact_collision"])
     extra: dict[str, Any] = {}
@@ -114,6 +121,8 @@ def _stats(scene: str, planner: str, limit: float, rs: list[dict[str, Any]]) -> 
                         collision_rate=coll / len(returned) if returned else 0.0,
                         mean_duration_s=_mean(durations),
                         median_duration_s=_median(durations),
+                        median_first_solution_s=_median(first),
+                        p95_first_solution_s=_pct(first, 95),
                         statuses=dict(sorted(statuses.items())),
                         case_lengths={int(r["case_index"]): float(r["solution_length"])
                                       for r in ok},

@@ -158,8 +158,10 @@ class BenchWorker:
             seed_length=path_length(seed_path) if seed_path is not None else float("nan"),
             seed_time_s=seed_time, seed_found=seed_found,
             trajopt_status=str(trajopt_status) if trajopt_status is not None else None,
-            fallback_to_seed=fell_back_to_seed(r),
-            info={**scalar_items(r.info), **timed, **(extra_info or {})}, worker=self.name)
+            fallback_to_seed=r.fell_back_to_seed,
+            info={**scalar_items(r.info), **timed, **(extra_info or {}),
+                  **({"first_solution_s": r.first_solution_s} if path is not None else {})},
+            worker=self.name)
 
 
 def load_roadmap_for(world: World, config: BenchConfig) -> Roadmap:
@@ -180,18 +182,6 @@ def reseed(planner: Any, seed: int) -> None:
     for p in (planner, getattr(planner, "seed_planner", None)):
         if p is not None and isinstance(getattr(p, "rng", None), np.random.Generator):
             p.rng = np.random.default_rng(seed)
-
-
-_TRAJOPT_STAGES = frozenset({Stage.STRAIGHT_LINE, Stage.OPTIMISE, Stage.RETRY, Stage.FALLBACK})
-
-
-def fell_back_to_seed(r: PlanResult) -> bool | None:
-    """Whether the answer is the seed itself, TrajOpt's trajectory having been rejected
-    (Roadmap + TrajOpt: a FALLBACK stage after a roadmap seed; its straight-line fallback is
-    a TrajOpt run, seeded from that stage); None when no TrajOpt stage ran."""
-    if not any(report.stage in _TRAJOPT_STAGES for report in r.stages):
-        return None
-    return r.seed_from == Stage.ROADMAP_SEED and r.stage(Stage.FALLBACK) is not None
 
 
 def _seed_of(r: PlanResult) -> tuple[np.ndarray | None, bool | None]:

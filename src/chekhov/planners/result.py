@@ -86,6 +86,15 @@ class PlanResult:
         return self.solutions[0].time_s if self.solutions else self.time_s
 
     @property
+    def fell_back_to_seed(self) -> bool | None:
+        """Whether the answer is the (shortcut) seed itself although TrajOpt ran from it —
+        its trajectory rejected or no shorter; None when no TrajOpt stage ran."""
+        if not any(r.stage in _TRAJOPT_STAGES for r in self.stages):
+            return None
+        return bool(self.success and self.solutions
+                    and self.solutions[-1].stage in (Stage.SHORTCUT, Stage.ROUTES))
+
+    @property
     def seed_report(self) -> StageReport | None:
         """The report of the stage the final optimisation's seed came from (``seed_from``)."""
         return self.stage(self.seed_from) if self.seed_from is not None else None
@@ -94,3 +103,6 @@ class PlanResult:
     def path_length(self) -> float:
         """Joint-space length of the path (rad): sum of segment L2 norms; nan without a path."""
         return path_length(self.path) if self.path is not None else float("nan")
+
+
+_TRAJOPT_STAGES = frozenset({Stage.STRAIGHT_LINE, Stage.OPTIMISE, Stage.RETRY, Stage.FALLBACK})

@@ -93,9 +93,7 @@ class PlanView:
     def summary_markdown(self) -> str:
         """Timing breakdown, path length and status as a Markdown table."""
         r = self.result
-        # the seed itself returned: a FALLBACK stage after a roadmap seed (the straight-line
-        # fallback is seeded from its own stage)
-        seed_fallback = r.seed_from == Stage.ROADMAP_SEED and r.stage(Stage.FALLBACK) is not None
+        seed_fallback = bool(r.fell_back_to_seed)
         rows = [("planner", self.planner),
                 ("status", r.status + (" (seed fallback)" if seed_fallback else "")),
                 ("total", f"{1e3 * r.time_s:.1f} ms")]
