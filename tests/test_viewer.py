@@ -78,15 +78,24 @@ def test_replanning_through_the_python_api_changes_the_trajectory(world, roadmap
     with Viewer(world, roadmap, cases, port=free_port(), plan_on_start=False,
                 obstacle=Shape("sphere", (0.06,))) as v:
         assert v.handles["gui/play"].value is True
-        v.select_case(0, plan=False)
-        first = v.replan()
-        assert first.result.success
-        before = v.shown_path()
-        assert before is not None and np.allclose(before, first.ee_path, atol=1e-5)
-        assert "path length" in v.handles["gui/result"].content
-        # put the obstacle where the end effector passes halfway: that path is now blocked
-        mid = before[len(before) // 2]
-        v.move_obstacle(make_transform(mid))
+        # the obstacle goes halfway along the hand's way: the first case where that leaves the
+        # start and a goal IK solution free (else the question has no answer to find)
+        for i in range(3):
+            v.select_case(i, plan=False)
+            first = v.replan()
+            assert first.result.success
+            before = v.shown_path()
+            assert before is not None and np.allclose(before, first.ee_path, atol=1e-5)
+            assert "path length" in v.handles["gui/result"].content
+            arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(before, axis=0),
+                                                                  axis=1))])
+            mid = before[int(np.searchsorted(arc, arc[-1] / 2))]
+            v.move_obstacle(make_transform(mid))
+            if world.exact.is_valid(cases.q_start[i]) and len(world.goal_ik.resolve(
+                    cases.goal(i), n=1)):
+                break
+        else:
+            raise AssertionError("in 3 cases the obstacle took the start or the goal")
         assert np.allclose(v.obstacles[v.obstacle_name].position, mid, atol=1e-6)
         assert not world.fast.path_valid(first.path)
         second = v.replan()

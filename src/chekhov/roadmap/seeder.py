@@ -131,8 +131,7 @@ class RoadmapSeeder:
                            else roadmap.config.resolution)
         cfg = self.config
         self.goal_ik = GoalResolver(world.robot, world.fast.valid, GoalIKConfig(
-            random_seeds=cfg.ik_random_seeds, random_rounds=cfg.ik_random_rounds,
-            thorough=False))
+            random_seeds=cfg.ik_random_seeds, random_rounds=cfg.ik_random_rounds))
         self._ee_position = NearestNodes(roadmap.ee_position)
         self._ee_rotation = np.ascontiguousarray(roadmap.ee_rotation, dtype=np.float64)
         self.validity = RoadmapValidity(roadmap, world.fast, self.resolution)
