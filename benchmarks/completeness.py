@@ -45,6 +45,7 @@ import pinocchio as pin
 from chekhov import Goal, Shape, World, builtin_scenes, load_or_build_roadmap
 from chekhov.planners.registry import make_planner
 from chekhov.planners.status import Stage
+from chekhov.roadmap.config import RoadmapConfig
 from chekhov.roadmap.graph import Roadmap
 
 FAMILIES = ("static", "dynamic", "boxed", "empty_roadmap")
@@ -131,19 +132,21 @@ def make_case(world: World, family: str, rng: np.random.Generator,
     raise RuntimeError(f"{world.scene.name}/{family}: no free case in 200 tries")
 
 
-def family_world(scene: str, family: str, cache: Path) -> tuple[World, Roadmap, Obstacles]:
-    """The planning world, its roadmap and the obstacles every case adds."""
+def family_world(scene: str, family: str, cache: Path, config: RoadmapConfig | None = None
+                 ) -> tuple[World, Roadmap, Obstacles]:
+    """The planning world, its roadmap (``config``, default the default) and the obstacles
+    every case adds."""
     world = World.load(scene)
     if family != "empty_roadmap":
-        return world, load_or_build_roadmap(world, path=cache / f"{scene}.npz"), {}
+        return world, load_or_build_roadmap(world, config, cache / f"{scene}.npz"), {}
     empty = World(replace(world.scene, name=f"{scene}_empty", objects=()), world.robot)
     fixed = {f"scene_{o.name}": (o.shape, o.T_world_obj()) for o in world.scene.objects}
-    return empty, load_or_build_roadmap(empty, path=cache / f"{scene}_empty.npz"), fixed
+    return empty, load_or_build_roadmap(empty, config, cache / f"{scene}_empty.npz"), fixed
 
 
-def run_family(scene: str, family: str, n: int, time_limit: float, seed: int, cache: Path
-               ) -> dict[str, object]:
-    world, roadmap, fixed = family_world(scene, family, cache)
+def run_family(scene: str, family: str, n: int, time_limit: float, seed: int, cache: Path,
+               config: RoadmapConfig | None = None) -> dict[str, object]:
+    world, roadmap, fixed = family_world(scene, family, cache, config)
     rng = np.random.default_rng([seed, FAMILIES.index(family)])
     pregrasps = [T for o in World.load(scene).scene.objects for _, T in o.pregrasp_poses()]
     cases = []
