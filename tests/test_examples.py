@@ -27,3 +27,14 @@ def test_timed_trajectory_example_writes_its_plot(tmp_path):
 def test_dynamic_obstacle_example_replans_around_the_forearm():
     stdout = _run("02_dynamic_obstacle.py")
     assert stdout.startswith("before: solved") and "blocks it: True; after: solved" in stdout
+
+
+def test_anytime_example_hears_its_solutions_in_order():
+    stdout = _run("05_anytime.py")
+    lines = stdout.splitlines()
+    heard = [ln for ln in lines if ln.strip().endswith(("shortcut", "routes", "optimise",
+                                                         "straight_line", "retry"))]
+    assert heard and lines[-1].startswith("solved: first answer after")
+    times = [float(ln.split()[0]) for ln in heard]
+    lengths = [float(ln.split()[2]) for ln in heard]
+    assert times == sorted(times) and lengths == sorted(lengths, reverse=True)

@@ -1,6 +1,8 @@
 """Typed outcomes: every plan() call ends with a PlanStatus and reports its stages in order,
 each with its status, time and product; the seed's stage is named (``seed_from``)."""
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -86,7 +88,7 @@ def test_anytime_solutions_come_in_order_each_certified_and_shorter(world, cases
         assert heard == list(r.solutions) and len(heard) >= 1
         times = [s.time_s for s in heard]
         lengths = [s.length_rad for s in heard]
-        assert times == sorted(times) and all(b < a for a, b in zip(lengths, lengths[1:]))
+        assert times == sorted(times) and all(b < a for a, b in itertools.pairwise(lengths))
         assert r.first_solution_s == times[0] <= r.time_s
         assert np.array_equal(heard[-1].path, r.path)
         for s in heard:

@@ -25,6 +25,7 @@ from chekhov.planners.base import Planner, PlannerBase, PlanResult, path_length,
 from chekhov.planners.lazy_prm import LazyPRM, LazyPRMConfig
 from chekhov.planners.ompl_planner import OmplPlanner
 from chekhov.planners.query import PlanQuery
+from chekhov.planners.result import Solution
 from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt, RoadmapTrajOptConfig
 from chekhov.planners.status import PlanStatus, Stage, StageReport
 from chekhov.planners.trajopt_planner import SeededTrajOpt, TrajOptPlanner
@@ -89,6 +90,7 @@ __all__ = [
     "SeededTrajOpt",
     "SeederConfig",
     "Shape",
+    "Solution",
     "SphereModel",
     "SphereSettings",
     "Stage",
