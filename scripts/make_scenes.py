@@ -48,6 +48,31 @@ def table(top_z: float = 0.75, cx: float = 0.85, cy: float = 0.25, sx: float = 0
 
 GRASP_BOX = [{"generate": {"approaches": ["top", "front"], "standoff": 0.10, "depth": 0.03}}]
 
+# Things to pick (issue 17), standing upright: (class, shape, size): cylinder (radius, height),
+# box (x, y, z) full lengths.
+ITEMS: dict[str, tuple[str, str, list[float]]] = {
+    "cup": ("object", "cylinder", [0.04, 0.10]),
+    "can": ("object", "cylinder", [0.033, 0.12]),
+    "bottle": ("object", "cylinder", [0.035, 0.20]),
+    "jar": ("object", "cylinder", [0.045, 0.12]),
+    "carton": ("box", "box", [0.07, 0.07, 0.16]),
+    "pack": ("box", "box", [0.06, 0.10, 0.10]),
+}
+
+
+def item(name: str, kind: str, xy: tuple[float, float], z: float, approaches: list[str],
+         yaw: float = 0.0, standoff: float = 0.10, depth: float = 0.03) -> dict[str, Any]:
+    """A graspable ``kind`` (see ITEMS) standing on a surface at height ``z`` (m), centred at
+    ``xy``, turned by ``yaw`` (rad) about the vertical; one generated grasp per approach
+    (object frame: ``front`` moves along +x, ``left`` along -y, ``right`` along +y)."""
+    cls, shape, size = ITEMS[kind]
+    height = size[-1]
+    return {"name": name, "class": cls, "shape": shape, "size": size,
+            "pose": {"xyz": [round(xy[0], 4), round(xy[1], 4), round(z + height / 2, 4)],
+                     "rpy": [0, 0, round(yaw, 6)]},
+            "grasps": [{"generate": {"approaches": approaches, "standoff": standoff,
+                                     "depth": depth}}]}
+
 
 def tabletop_pole() -> dict[str, Any]:
     objs = table()
@@ -55,6 +80,16 @@ def tabletop_pole() -> dict[str, Any]:
                  "pose": {"xyz": [0.80, 0.30, 1.10], "rpy": [0, 0, 0]}})
     objs.append(box("box_left", "box", [0.10, 0.10, 0.16], [0.75, 0.68, 0.83], grasps=GRASP_BOX))
     objs.append(box("box_right", "box", [0.10, 0.10, 0.16], [0.75, -0.08, 0.83], grasps=GRASP_BOX))
+    z = 0.75  # table top
+    objs += [  # around the pole (the arm does not reach behind it), and along the table
+        item("cup_0", "cup", (0.66, 0.38), z, ["top", "front"]),
+        item("cup_1", "cup", (0.68, 0.18), z, ["top", "front"]),
+        item("bottle_0", "bottle", (0.82, 0.45), z, ["top"]),
+        item("can_0", "can", (0.80, 0.15), z, ["top"]),
+        item("carton_0", "carton", (0.58, 0.60), z, ["top"]),
+        item("pack_0", "pack", (0.60, -0.32), z, ["top"]),
+        item("cup_2", "cup", (0.55, 0.82), z, ["top", "front"]),
+    ]
     return {"name": "tabletop_pole",
             "description": "Tabletop pick-and-place: a slender pole in the middle of the table "
                            "and a box on each side of it.",
@@ -78,6 +113,17 @@ def tabletop_container() -> dict[str, Any]:
             grasps=[{"generate": {"approaches": ["top"], "standoff": 0.12, "depth": 0.03}}]),
         box("box_out_0", "box", [0.10, 0.10, 0.14], [0.70, -0.20, z0 + 0.07], grasps=GRASP_BOX),
         box("box_out_1", "box", [0.10, 0.10, 0.14], [0.68, 0.85, z0 + 0.07], grasps=GRASP_BOX),
+    ]
+    floor = z0 + t
+    objs += [  # in the container (the arm reaches its front half from above), beside it
+        item("cup_in_0", "cup", (0.70, 0.46), floor, ["top"]),
+        item("cup_in_1", "cup", (0.78, 0.55), floor, ["top"]),
+        item("can_in_0", "can", (0.83, 0.30), floor, ["top"]),
+        item("jar_in_0", "jar", (0.69, 0.30), floor, ["top"]),
+        item("cup_out_0", "cup", (0.58, -0.32), z0, ["top"]),
+        item("bottle_out_0", "bottle", (0.80, -0.08), z0, ["top"]),
+        item("carton_out_0", "carton", (0.55, 0.75), z0, ["top", "front"]),
+        item("pack_out_0", "pack", (0.70, 0.665), z0, ["top"], yaw=math.pi / 2),
     ]
     return {"name": "tabletop_container",
             "description": "A table with a large open container; boxes inside and outside it.",
@@ -110,6 +156,12 @@ def shelf_boxes() -> dict[str, Any]:
                             [x0 + depth - 0.08, y0 + fy * width, z + sz / 2],
                             grasps=[{"generate": {"approaches": ["front"], "standoff": 0.10,
                                                   "depth": 0.03}}]))
+        # things to pick (issue 17): a can between the two boxes, as deep as they stand, and a
+        # carton nearer the front on the boxes' left
+        y_between = y0 + width * (0.18 + 0.09 * (k % 3) + 0.68 - 0.07 * (k % 4)) / 2
+        objs.append(item(f"can_{k}_0", "can", (x0 + depth - 0.12, y_between), z, ["front"]))
+        objs.append(item(f"carton_{k}_1", "carton", (x0 + 0.16, y0 + 0.79 * width), z,
+                         ["front"]))
         regions.append({"name": f"level_{k}", "center": [round(cx, 4), round(cy, 4),
                                                         round(z + 0.095, 4)],
                         "size": [depth, width, 0.17], "weight": 2.0})
