@@ -250,6 +250,34 @@ KITCHEN_CLASSES = [
 ]
 
 
+def kitchen_items() -> list[dict[str, Any]]:
+    """Things to pick in the kitchen (issue 17), turned to face the robot (it stands at
+    x = 1.05 looking along -x: ``front`` grasps move along -x). The wall cabinet (x < 0.4,
+    from z = 1.19) hangs over the back of the counter, so things under it are taken from the
+    front, things at the counter's edge from above too."""
+    face = math.pi
+    counter, sink, fridge = 0.76, 0.51, (0.61, 0.93, 1.24)   # surfaces, m
+    cabinet = (1.21, 1.56)
+    return [
+        item("counter_cup_0", "cup", (0.52, 0.85), counter, ["top", "front"], face),
+        item("counter_cup_1", "cup", (0.50, 1.00), counter, ["top", "front"], face),
+        item("counter_carton_0", "carton", (0.28, 1.12), counter, ["front"], face),
+        item("counter_bottle_0", "bottle", (0.25, 1.25), counter, ["front"], face),
+        item("sink_cup_0", "cup", (0.45, 1.45), sink, ["top"], face),
+        item("sink_cup_1", "cup", (0.50, 1.55), sink, ["top"], face),
+        item("sink_jar_0", "jar", (0.36, 1.40), sink, ["top"], face),
+        item("fridge_bottle_1", "bottle", (0.48, 0.55), fridge[0], ["front"], face),
+        item("fridge_bottle_0", "bottle", (0.42, 0.50), fridge[1], ["front"], face),
+        item("fridge_carton_0", "carton", (0.40, 0.30), fridge[1], ["front"], face),
+        item("fridge_jar_0", "jar", (0.40, 0.50), fridge[2], ["front"], face),
+        item("fridge_can_0", "can", (0.42, 0.30), fridge[2], ["front"], face),
+        item("cabinet_cup_0", "cup", (0.22, 0.90), cabinet[0], ["front"], face),
+        item("cabinet_pack_0", "pack", (0.22, 1.20), cabinet[0], ["front"], face),
+        item("cabinet_jar_0", "jar", (0.22, 1.00), cabinet[1], ["front"], face),
+        item("cabinet_can_0", "can", (0.22, 0.85), cabinet[1], ["front"], face),
+    ]
+
+
 def kitchen(xml_path: Path) -> dict[str, Any]:
     root = ET.parse(xml_path).getroot()
     hinge_world = (0.60, 0.16)  # dishwasher door hinge: its front bottom edge (x, z)
@@ -281,9 +309,11 @@ def kitchen(xml_path: Path) -> dict[str, Any]:
                 d["grasps"] = [{"generate": {"approaches": ["back"], "standoff": 0.10,
                                              "depth": 0.0}}]
             objs.append(d)
+    objs += kitchen_items()
     return {"name": "kitchen",
             "description": "The kitchen of the TrajOpt package (50 boxes, kept as given), Baxter "
-                           "facing the counter between the fridge and the sink.",
+                           "facing the counter between the fridge and the sink; things to pick "
+                           "on the counter, in the sink, in the fridge and the wall cabinet.",
             "robot": "baxter_left",
             "base_pose": {"xyz": [1.05, 1.25, 0.93], "rpy": [0.0, 0.0, round(math.pi, 9)]},
             "objects": objs,
