@@ -165,7 +165,7 @@ class RoadmapTrajOpt(PlannerBase):
     def _repair(self, run: AnytimeRun) -> list[Array]:
         """The tree repair's path (a list of one), or an empty list."""
         query = run.query
-        Q_goal = self._goal_configurations(query)
+        Q_goal = self._goal_configurations(query, self.config.seeder.repair.goal_roots)
         if len(Q_goal) == 0:
             return []
         reserve = min(0.05, self.config.repair_reserve * query.remaining())
@@ -283,14 +283,14 @@ class RoadmapTrajOpt(PlannerBase):
         run.stages.append(optimise_report(r, time.perf_counter() - t, stage))
         return r
 
-    def _goal_configurations(self, query: PlanQuery) -> Array:
-        """(n, K): the goal configuration, or the pose goal's IK solutions nearest the start
-        first (empty when there is none)."""
+    def _goal_configurations(self, query: PlanQuery, n: int | None = None) -> Array:
+        """(n, K): the goal configuration, or up to n (default the seeder's ``n_goal_ik``) of
+        the pose goal's IK solutions, nearest the start first (empty when there is none)."""
         goal = query.goal
         if goal.q is not None:
             return goal.q[None]
         assert goal.T_world_ee is not None
-        Q, _ = self.seeder.goal_configurations(goal.T_world_ee, deadline=query.deadline,
+        Q, _ = self.seeder.goal_configurations(goal.T_world_ee, n, deadline=query.deadline,
                                                near=query.q_start)
         return Q
 
