@@ -198,6 +198,11 @@ def panda_table_shelf() -> dict[str, Any]:
         {"name": "can", "class": "box", "shape": "cylinder", "size": [0.035, 0.12],
          "pose": {"xyz": [0.40, 0.05, 0.06], "rpy": [0, 0, 0]},
          "grasps": [{"generate": {"approaches": ["top"], "standoff": 0.10, "depth": 0.03}}]},
+        # issue 17: more on and under the board, and in the open
+        item("on_shelf_cup", "cup", (sx - 0.03, sy - 0.15), sz + t, ["top", "front"]),
+        item("under_can", "can", (sx - 0.04, sy), 0.0, ["front"]),
+        item("open_bottle", "bottle", (0.40, -0.55), 0.0, ["top", "front"]),
+        item("open_cup", "cup", (0.68, -0.08), 0.0, ["top"]),
     ]
     return {"name": "panda_table_shelf",
             "description": "A Franka Panda at a bench: objects to pick in the open, on a shelf "
@@ -229,6 +234,12 @@ def panda_cage() -> dict[str, Any]:
         box("inside_1", "box", [0.05, 0.07, 0.14], [cx + 0.06, cy + 0.08, 0.07], grasps=front),
         box("beside_0", "box", [0.06, 0.06, 0.12], [0.45, -0.36, 0.06], grasps=top),
         box("beside_1", "box", [0.06, 0.08, 0.10], [0.40, 0.42, 0.05], grasps=top),
+        # issue 17: more beside the cage (inside, the hand has room for the two boxes only)
+        item("beside_cup", "cup", (0.55, -0.55), 0.0, ["top", "front"]),
+        item("beside_bottle", "bottle", (0.60, -0.40), 0.0, ["top"]),
+        item("beside_jar", "jar", (0.38, 0.60), 0.0, ["top"]),
+        item("beside_can", "can", (0.65, 0.45), 0.0, ["top"]),
+        item("beside_pack", "pack", (0.50, 0.55), 0.0, ["top"]),
     ]
     return {"name": "panda_cage",
             "description": "A Franka Panda at a bench with a cage open towards it and a bar "
