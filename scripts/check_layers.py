@@ -4,8 +4,8 @@
 
 Every ``import`` / ``from … import`` in ``src/chekhov`` counts, those inside functions too (a
 cycle through a function-level import still ties the two modules together; only the moment it
-bites differs), except that imports under ``if TYPE_CHECKING:`` are left out of the cycle
-search (annotations only: they never run) while still counted as upward imports.
+bites differs), and those under ``if TYPE_CHECKING:`` too (two modules that need each other's
+types are one concept split in two: move the shared type below both).
 ``from chekhov.pkg import name`` counts as an import of the submodule
 ``chekhov.pkg.name`` when that is a module, else of the package ``chekhov.pkg``. Importing a
 submodule is not counted as importing its package's ``__init__``.
@@ -150,7 +150,7 @@ def cycles(graph: dict[str, list[Import]]) -> list[list[str]]:
         index[v] = low[v] = len(index)
         stack.append(v)
         on_stack.add(v)
-        for w in sorted({i.target for i in graph.get(v, []) if not i.type_only}):
+        for w in sorted({i.target for i in graph.get(v, [])}):
             if w not in index:
                 visit(w)
                 low[v] = min(low[v], low[w])

@@ -43,10 +43,11 @@ def test_checker_finds_cycles_upward_and_sideways_imports(tmp_path: Path) -> Non
         "roadmap/__init__.py": "",
         "roadmap/a.py": "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n"
                         "    from chekhov.roadmap.b import B\n",
-        "roadmap/b.py": "from chekhov.roadmap.a import A\n",  # type-only: no cycle
+        "roadmap/b.py": "from chekhov.roadmap.a import A\n",  # a cycle, if only in types
     })
     found = _checker().problems(src)
-    assert len(found) == 3, found
+    assert len(found) == 4, found
+    assert "import cycle: chekhov.roadmap.a <-> chekhov.roadmap.b" in found
     assert any("upward import: chekhov.errors" in f and "chekhov.collision.fast" in f
                for f in found)
     assert any("sideways import: chekhov.viewer.app" in f for f in found)

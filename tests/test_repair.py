@@ -13,7 +13,8 @@ from chekhov.bench.cases import generate_cases
 from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt
 from chekhov.planners.status import PlanStatus, Stage
 from chekhov.roadmap.build import build_roadmap
-from chekhov.roadmap.repair import RepairConfig, TreeRepair
+from chekhov.roadmap.config import RepairConfig
+from chekhov.roadmap.repair import TreeRepair
 from chekhov.roadmap.seeder import SeedResult
 from chekhov.world import World
 

@@ -17,8 +17,8 @@ from chekhov.roadmap.build import build_roadmap
 from chekhov.roadmap.config import RoadmapConfig
 from chekhov.roadmap.errors import RoadmapError, RoadmapMismatchError
 from chekhov.roadmap.io import load_or_build_roadmap, load_roadmap, save_roadmap
-from chekhov.roadmap.kpaths import KShortestPaths, yen_k_shortest
-from chekhov.roadmap.search import csr_adjacency
+from chekhov.roadmap.kpaths import KShortestPaths
+from chekhov.roadmap.search import csr_adjacency, yen_k_shortest
 from chekhov.roadmap.seeder import RoadmapSeeder
 from chekhov.robot.chain_kinematics import ChainKinematics
 from chekhov.robot.goal import Goal
@@ -208,14 +208,14 @@ def test_seeds_route_to_distinct_goal_ik_solutions(world, seeder):
     several = 0
     for q0, qg in zip(Q[:8], Q[8:], strict=True):
         T = world.robot.compute_ee_pose(qg)
-        found = seeder.seeds(q0, Goal.pose(T), 4)
+        found = seeder.seeds(q0, Goal.pose(T), 3)   # n_goal_ik: the same goal set as seed()
         first = seeder.seed(q0, Goal.pose(T))
         assert found[0].success == first.success
         if not first.success:
             continue
         assert np.array_equal(found[0].path, first.path)
         ends = np.array([s.path[-1] for s in found])
-        assert len(found) <= 4
+        assert len(found) <= 3
         assert all(np.linalg.norm(a - b) > 0.1 for i, a in enumerate(ends) for b in ends[:i])
         for s in found:
             assert np.array_equal(s.path[0], q0)

@@ -18,8 +18,7 @@ from chekhov.collision.fast import FastChecker
 from chekhov.roadmap.config import RoadmapConfig
 from chekhov.roadmap.errors import RoadmapError
 from chekhov.roadmap.graph import FORMAT_VERSION, NODE_KINDS, Roadmap, RoadmapMeta
-from chekhov.roadmap.kpaths import yen_k_shortest
-from chekhov.roadmap.search import csr_adjacency
+from chekhov.roadmap.search import csr_adjacency, yen_k_shortest
 from chekhov.robot.chain_kinematics import ChainKinematics
 from chekhov.world import World
 

@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
+from chekhov.errors import ChekhovError
 from chekhov.roadmap.errors import RoadmapError
 
 
@@ -86,3 +87,91 @@ class RoadmapConfig:
         if kw.get("distal_values") is not None:
             kw["distal_values"] = tuple(kw["distal_values"])
         return cls(**kw)
+
+
+@dataclass(frozen=True)
+class RepairConfig:
+    """Settings of :class:`TreeRepair`.
+
+    Attributes:
+        range_fraction: longest tree step, as a fraction of the joint space's diagonal
+            (OMPL RRTConnect's default 0.2).
+        attach_candidates: nearest valid roadmap nodes an extend node tries to reach.
+        attach_every: only every n-th extend node tries (the attempts cost motion checks
+            the trees need too: measured in a kitchen pocket, trying every node with 2
+            candidates made the search 1.5-1.8x slower).
+        route_pairs: roadmap routes tried for each new attachment (nearest by roadmap distance).
+        max_nodes: tree nodes (both trees) after which the search gives up.
+        goal_roots: goal IK solutions the goal tree grows from (a pose goal's; RRTConnect's
+            OMPL planner here uses 4: more roots, more ways in).
+        seed: seed of the samples (a fresh generator per search: same query, same answer).
+    """
+
+    range_fraction: float = 0.2
+    attach_candidates: int = 1
+    attach_every: int = 4
+    route_pairs: int = 2
+    max_nodes: int = 50_000
+    goal_roots: int = 8
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if not 0 < self.range_fraction <= 1:
+            raise ChekhovError(f"RepairConfig.range_fraction: must be in (0, 1], got "
+                               f"{self.range_fraction!r}")
+        if not (isinstance(self.attach_every, int) and self.attach_every >= 1):
+            raise ChekhovError(f"RepairConfig.attach_every: must be an integer >= 1, got "
+                               f"{self.attach_every!r}")
+        for name in ("attach_candidates", "route_pairs", "max_nodes", "goal_roots"):
+            v = getattr(self, name)
+            if not (isinstance(v, int) and v >= 0):
+                raise ChekhovError(f"RepairConfig.{name}: must be an integer >= 0, got {v!r}")
+
+
+@dataclass(frozen=True)
+class SeederConfig:
+    """Query settings.
+
+    Attributes:
+        n_goal_ik: distinct IK solutions wanted for a pose goal (:meth:`RoadmapSeeder.seeds`
+            asks for more when it is to route to more).
+        ik_seeds: roadmap nodes (nearest end-effector pose to the goal) that seed the IK.
+        ik_random_seeds, ik_random_rounds: random restarts per round, and rounds, tried only
+            when the node seeds give no collision-free solution.
+        connect_candidates: nearest roadmap nodes tried for a direct connection (rad L2).
+        max_connections: free connections kept per end point; the seed minimises
+            start cost + roadmap distance + goal cost over their combinations.
+        bridges: when no direct connection exists, try two-segment connections through an
+            intermediate configuration (wrist set to the roadmap's distal values, proximal
+            joints moved first, or a random nearby configuration).
+        bridge_samples: random intermediates tried, at ``bridge_radius`` rad at most.
+        tree_nodes, tree_step, tree_time_s: size, step (rad) and time budget (s) of the
+            RRT grown from an end point nothing else connects (``roadmap.connect``). Only
+            end points in narrow pockets get here (about 1 query in 200 in the kitchen and
+            shelf); 0.5 s connects every such case that RRTConnect solves in 5 s (measured
+            on benchmarks/roadmap.py's 500 cases; 50 ms left 0.6% of kitchen unconnected).
+        wide_candidates: nearest nodes tried directly as the last resort.
+        max_pair_tries: (start node, goal node) pairs tried when dynamic obstacles block paths.
+        lazy_iterations: A* rounds of the lazy search on the remaining graph.
+        resolution: rad, motion check step; None: the roadmap's.
+        repair: the bidirectional tree that connects into the roadmap when it cannot
+            answer alone (:mod:`chekhov.roadmap.repair`, :meth:`RoadmapSeeder.repair`).
+    """
+
+    n_goal_ik: int = 3
+    ik_seeds: int = 6
+    ik_random_seeds: int = 32
+    ik_random_rounds: int = 4
+    connect_candidates: int = 32
+    max_connections: int = 3
+    bridges: bool = True
+    bridge_samples: int = 48
+    bridge_radius: float = 0.8
+    tree_nodes: int = 5000
+    tree_time_s: float = 0.5
+    tree_step: float = 0.3
+    wide_candidates: int = 160
+    max_pair_tries: int = 6
+    lazy_iterations: int = 60
+    resolution: float | None = None
+    repair: RepairConfig = field(default_factory=RepairConfig)

@@ -23,19 +23,16 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
+from chekhov.roadmap.config import SeederConfig
 from chekhov.roadmap.graph import Roadmap
 from chekhov.roadmap.nearest import NearestNodes
 from chekhov.roadmap.validity import RoadmapValidity
 from chekhov.world import World
-
-if TYPE_CHECKING:
-    from chekhov.roadmap.seeder import SeederConfig
 
 Array = NDArray[np.float64]
 _BATCHES = (1, 2, 6)

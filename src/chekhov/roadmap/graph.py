@@ -8,8 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from chekhov.roadmap.config import RoadmapConfig
-from chekhov.roadmap.kpaths import yen_k_shortest
-from chekhov.roadmap.search import recover_path
+from chekhov.roadmap.search import recover_path, yen_k_shortest
 
 Array = NDArray[np.float64]
 IntArray = NDArray[np.int64]

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from chekhov.errors import ChekhovError
+from chekhov.roadmap.config import RepairConfig
 from chekhov.roadmap.graph import Roadmap
 from chekhov.roadmap.nearest import NearestNodes
 from chekhov.roadmap.validity import RoadmapValidity
@@ -35,45 +35,6 @@ Array = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 RouteFn = Callable[[int, int, float], "IntArray | None"]
 """(node s, node g, deadline) → roadmap nodes s … g free of the current obstacles, or None."""
-
-
-@dataclass(frozen=True)
-class RepairConfig:
-    """Settings of :class:`TreeRepair`.
-
-    Attributes:
-        range_fraction: longest tree step, as a fraction of the joint space's diagonal
-            (OMPL RRTConnect's default 0.2).
-        attach_candidates: nearest valid roadmap nodes an extend node tries to reach.
-        attach_every: only every n-th extend node tries (the attempts cost motion checks
-            the trees need too: measured in a kitchen pocket, trying every node with 2
-            candidates made the search 1.5-1.8x slower).
-        route_pairs: roadmap routes tried for each new attachment (nearest by roadmap distance).
-        max_nodes: tree nodes (both trees) after which the search gives up.
-        goal_roots: goal IK solutions the goal tree grows from (a pose goal's; RRTConnect's
-            OMPL planner here uses 4: more roots, more ways in).
-        seed: seed of the samples (a fresh generator per search: same query, same answer).
-    """
-
-    range_fraction: float = 0.2
-    attach_candidates: int = 1
-    attach_every: int = 4
-    route_pairs: int = 2
-    max_nodes: int = 50_000
-    goal_roots: int = 8
-    seed: int = 0
-
-    def __post_init__(self) -> None:
-        if not 0 < self.range_fraction <= 1:
-            raise ChekhovError(f"RepairConfig.range_fraction: must be in (0, 1], got "
-                               f"{self.range_fraction!r}")
-        if not (isinstance(self.attach_every, int) and self.attach_every >= 1):
-            raise ChekhovError(f"RepairConfig.attach_every: must be an integer >= 1, got "
-                               f"{self.attach_every!r}")
-        for name in ("attach_candidates", "route_pairs", "max_nodes", "goal_roots"):
-            v = getattr(self, name)
-            if not (isinstance(v, int) and v >= 0):
-                raise ChekhovError(f"RepairConfig.{name}: must be an integer >= 0, got {v!r}")
 
 
 @dataclass(frozen=True, eq=False)

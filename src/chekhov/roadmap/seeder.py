@@ -11,12 +11,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from chekhov.roadmap.build import distal_values
+from chekhov.roadmap.config import SeederConfig
 from chekhov.roadmap.connect import Connection, Connector
 from chekhov.roadmap.errors import RoadmapMismatchError
 from chekhov.roadmap.graph import Roadmap
 from chekhov.roadmap.kpaths import KShortestPaths
 from chekhov.roadmap.nearest import NearestNodes, nearest_poses
-from chekhov.roadmap.repair import RepairConfig, RepairResult, TreeRepair
+from chekhov.roadmap.repair import RepairResult, TreeRepair
 from chekhov.roadmap.search import astar, path_edges, warm_up
 from chekhov.roadmap.validity import INVALID, RoadmapValidity
 from chekhov.robot.goal import Goal
@@ -25,55 +26,6 @@ from chekhov.world import World
 
 Array = NDArray[np.float64]
 IntArray = NDArray[np.int64]
-
-
-@dataclass(frozen=True)
-class SeederConfig:
-    """Query settings.
-
-    Attributes:
-        n_goal_ik: distinct IK solutions wanted for a pose goal (:meth:`RoadmapSeeder.seeds`
-            asks for more when it is to route to more).
-        ik_seeds: roadmap nodes (nearest end-effector pose to the goal) that seed the IK.
-        ik_random_seeds, ik_random_rounds: random restarts per round, and rounds, tried only
-            when the node seeds give no collision-free solution.
-        connect_candidates: nearest roadmap nodes tried for a direct connection (rad L2).
-        max_connections: free connections kept per end point; the seed minimises
-            start cost + roadmap distance + goal cost over their combinations.
-        bridges: when no direct connection exists, try two-segment connections through an
-            intermediate configuration (wrist set to the roadmap's distal values, proximal
-            joints moved first, or a random nearby configuration).
-        bridge_samples: random intermediates tried, at ``bridge_radius`` rad at most.
-        tree_nodes, tree_step, tree_time_s: size, step (rad) and time budget (s) of the
-            RRT grown from an end point nothing else connects (``roadmap.connect``). Only
-            end points in narrow pockets get here (about 1 query in 200 in the kitchen and
-            shelf); 0.5 s connects every such case that RRTConnect solves in 5 s (measured
-            on benchmarks/roadmap.py's 500 cases; 50 ms left 0.6% of kitchen unconnected).
-        wide_candidates: nearest nodes tried directly as the last resort.
-        max_pair_tries: (start node, goal node) pairs tried when dynamic obstacles block paths.
-        lazy_iterations: A* rounds of the lazy search on the remaining graph.
-        resolution: rad, motion check step; None: the roadmap's.
-        repair: the bidirectional tree that connects into the roadmap when it cannot
-            answer alone (:mod:`chekhov.roadmap.repair`, :meth:`RoadmapSeeder.repair`).
-    """
-
-    n_goal_ik: int = 3
-    ik_seeds: int = 6
-    ik_random_seeds: int = 32
-    ik_random_rounds: int = 4
-    connect_candidates: int = 32
-    max_connections: int = 3
-    bridges: bool = True
-    bridge_samples: int = 48
-    bridge_radius: float = 0.8
-    tree_nodes: int = 5000
-    tree_time_s: float = 0.5
-    tree_step: float = 0.3
-    wide_candidates: int = 160
-    max_pair_tries: int = 6
-    lazy_iterations: int = 60
-    resolution: float | None = None
-    repair: RepairConfig = field(default_factory=RepairConfig)
 
 
 @dataclass(frozen=True, eq=False)
@@ -195,33 +147,12 @@ class RoadmapSeeder:
         if not (robot.within_limits(q_start)[0] and fast.is_valid(q_start)):
             return fail("invalid_start", reason="start outside the limits or in collision")
         t = time.perf_counter()
-        if goal.is_pose:
-            assert goal.T_world_ee is not None
-            Q_goal, why = self.goal_configurations(goal.T_world_ee,
-                                                   max(self.config.n_goal_ik, n_routes), deadline)
-            timing["ik"] = time.perf_counter() - t
-            if len(Q_goal) == 0:
-                return fail("no_ik", reason=why)
-        else:
-            assert goal.q is not None
-            q_goal = robot.check_configuration(goal.q, "goal configuration")
-            if not (robot.within_limits(q_goal)[0] and fast.is_valid(q_goal)):
-                return fail("invalid_goal", reason="goal outside the limits or in collision")
-            Q_goal = q_goal[None]
+        Q_goal, status, why = self._goal_set(q_start, goal, n_routes, deadline)
+        timing["ik"] = time.perf_counter() - t
+        if status:
+            return fail(status, reason=why)
         t = time.perf_counter()
-        starts = self.connector.connect(q_start, deadline=deadline)
-        goals: list[list[tuple[int, Connection]]] = []
-        if starts:
-            for gi, qg in enumerate(Q_goal):
-                if time.perf_counter() >= deadline:
-                    break
-                # once one goal connects, the others get no tree (up to tree_time_s each)
-                g = [(gi, c) for c in self.connector.connect(qg, last_resorts=not goals,
-                                                             deadline=deadline)]
-                if g:
-                    goals.append(g)
-                    if len(goals) == n_routes:
-                        break
+        starts, goals = self._connect_ends(q_start, Q_goal, n_routes, deadline)
         timing["connect"] = time.perf_counter() - t
         if time.perf_counter() >= deadline:
             return fail("timeout", reason="the time limit passed while connecting")
@@ -237,6 +168,42 @@ class RoadmapSeeder:
         checks = {k: self.validity.checks[k] - checks0[k] for k in checks0}
         return [SeedResult(True, "solved", path, nodes, q_goal, timing,
                            {**info, "checks": checks}) for path, nodes, q_goal, info in found]
+
+    def _goal_set(self, q_start: Array, goal: Goal, n_routes: int, deadline: float
+                  ) -> tuple[Array, str, str]:
+        """(goal configurations (n, K) nearest the start first, failure status, reason)."""
+        robot = self.world.robot
+        if goal.is_pose:
+            assert goal.T_world_ee is not None
+            Q_goal, why = self.goal_configurations(
+                goal.T_world_ee, max(self.config.n_goal_ik, n_routes), deadline, near=q_start)
+            return Q_goal, "" if len(Q_goal) else "no_ik", why
+        assert goal.q is not None
+        q_goal = robot.check_configuration(goal.q, "goal configuration")
+        if not (robot.within_limits(q_goal)[0] and self.world.fast.is_valid(q_goal)):
+            return q_goal[None], "invalid_goal", "goal outside the limits or in collision"
+        return q_goal[None], "", ""
+
+    def _connect_ends(self, q_start: Array, Q_goal: Array, n_routes: int, deadline: float
+                      ) -> tuple[list[Connection], list[list[tuple[int, Connection]]]]:
+        """Connections of the start, and of up to n_routes goal configurations (each a list
+        of (goal index, connection)), to the roadmap; none of the goals' when the start has
+        none."""
+        starts = self.connector.connect(q_start, deadline=deadline)
+        goals: list[list[tuple[int, Connection]]] = []
+        if not starts:
+            return starts, goals
+        for gi, qg in enumerate(Q_goal):
+            if time.perf_counter() >= deadline:
+                break
+            # once one goal connects, the others get no tree (up to tree_time_s each)
+            g = [(gi, c) for c in self.connector.connect(qg, last_resorts=not goals,
+                                                         deadline=deadline)]
+            if g:
+                goals.append(g)
+                if len(goals) == n_routes:
+                    break
+        return starts, goals
 
     def repair(self, q_start: Array, Q_goal: Array, deadline: float) -> RepairResult:
         """When :meth:`seeds` found nothing (no connection, or every route cut): a path

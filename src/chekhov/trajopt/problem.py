@@ -19,6 +19,7 @@ from chekhov.collision.distance_terms import TrajectoryDistances
 from chekhov.errors import ChekhovError, IKError, RobotError
 from chekhov.paths import resample_path
 from chekhov.robot.goal import Goal
+from chekhov.robot.robot import Robot
 from chekhov.trajopt.config import TrajOptConfig
 from chekhov.world import World
 
@@ -305,6 +306,25 @@ def build_trajopt(world: World, q_start: Array, goal: Goal, seed: Array | None =
             raise TrajOptError(
                 f"goal pose: position {np.round(goal.T_world_ee[:3, 3], 3).tolist()} is "
                 f"{dist:.3f} m from the arm's first joint, beyond its reach of {reach:.3f} m")
+    S = _checked_seed(world, q_start, goal, seed, config)
+    weights = (np.ones(K) if config.joint_weights is None
+               else np.asarray(config.joint_weights, dtype=float))
+    if weights.shape != (K,):
+        raise TrajOptError(f"joint_weights: expected {K} values, got {weights.shape}")
+    dt, vlim, alim, tlim = _dynamics_limits(robot, config, len(S))
+    return TrajOptProblem(
+        world=world, distances=distances if distances is not None else
+        TrajectoryDistances(world.fast), q_start=q_start, goal=goal, seed=S, config=config,
+        weights=weights, lower=robot.lower.copy(), upper=robot.upper.copy(), dt=dt,
+        velocity_limit=vlim, acceleration_limit=alim, torque_limit=tlim)
+
+
+def _checked_seed(world: World, q_start: Array, goal: Goal, seed: Array | None,
+                  config: TrajOptConfig) -> Array:
+    """The seed (T, K) rad TrajOpt starts from: ``seed`` checked and resampled to at most
+    ``config.max_step_rad`` (ending at a configuration goal), or a straight line to the goal
+    configuration; clipped to the limits, starting exactly at q_start."""
+    robot, K = world.robot, world.robot.dof
     if seed is None:
         q_goal = goal_configuration(world, q_start, goal)
         S = straight_line_seed(q_start, q_goal, config.n_waypoints)
@@ -323,23 +343,22 @@ def build_trajopt(world: World, q_start: Array, goal: Goal, seed: Array | None =
             S = np.vstack([S, S])
     S = np.clip(S, robot.lower, robot.upper)
     S[0] = q_start
-    weights = (np.ones(K) if config.joint_weights is None
-               else np.asarray(config.joint_weights, dtype=float))
-    if weights.shape != (K,):
-        raise TrajOptError(f"joint_weights: expected {K} values, got {weights.shape}")
+    return S
+
+
+def _dynamics_limits(robot: Robot, config: TrajOptConfig, T: int
+                     ) -> tuple[float, Array, Array, Array]:
+    """(dt s, per-step velocity limit (K,) rad, per-step² acceleration limit (K,) rad, torque
+    limit (K,) N·m) for T waypoints; nan and inf without ``config.duration_s``."""
+    K = robot.dof
     inf = np.full(K, np.inf)
-    dt, vlim, alim, tlim = np.nan, inf, inf, inf
-    if config.duration_s is not None:
-        if config.duration_s <= 0:
-            raise TrajOptError(f"duration_s must be positive, got {config.duration_s}")
-        dt = config.duration_s / (len(S) - 1)
-        vlim = config.velocity_scale * robot.velocity_limit * dt
-        if config.acceleration_limit is not None:
-            alim = np.full(K, config.acceleration_limit * dt**2)
-        if config.torque_limits:
-            tlim = robot.effort_limit.copy()
-    return TrajOptProblem(
-        world=world, distances=distances if distances is not None else
-        TrajectoryDistances(world.fast), q_start=q_start, goal=goal, seed=S, config=config,
-        weights=weights, lower=robot.lower.copy(), upper=robot.upper.copy(), dt=dt,
-        velocity_limit=vlim, acceleration_limit=alim, torque_limit=tlim)
+    if config.duration_s is None:
+        return np.nan, inf, inf, inf
+    if config.duration_s <= 0:
+        raise TrajOptError(f"duration_s must be positive, got {config.duration_s}")
+    dt = config.duration_s / (T - 1)
+    vlim = config.velocity_scale * robot.velocity_limit * dt
+    alim = inf if config.acceleration_limit is None else np.full(
+        K, config.acceleration_limit * dt**2)
+    tlim = robot.effort_limit.copy() if config.torque_limits else inf
+    return dt, vlim, alim, tlim
