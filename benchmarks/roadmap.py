@@ -7,7 +7,9 @@ failures, seed length; semantic sampling on and off; with random dynamic obstacl
 Cases: random collision-free start and goal configurations within the limits (fast and exact
 checkers agree), the goal given as the end-effector pose of the goal configuration;
 deterministic for a given --seed. One JSON object per scene; ``bench_scene`` returns it as a
-dict so other planners' figures can be added.
+dict so other planners' figures can be added. ``pregrasp_nodes``: the roadmap's pre-grasp nodes
+(IK configurations of the scene's pre-grasp poses, in its largest component; 0 with semantic
+sampling off).
 
 ``roadmap_trajopt`` (also under ``semantic_off`` and ``dynamic``) holds the Roadmap + TrajOpt
 planner's figures on the same cases (ours: a 40 ms straight-line TrajOpt try, then the roadmap;
@@ -198,6 +200,7 @@ def roadmap_for(world: World, config: RoadmapConfig, cache: Path | None
 def roadmap_figures(rm: Roadmap, build_s: float) -> dict[str, object]:
     return {"build_s": round(build_s, 2), "nodes": rm.n_nodes, "edges": rm.n_edges,
             "dropped_nodes": rm.meta.dropped_nodes, "node_counts": rm.meta.node_counts,
+            "pregrasp_nodes": rm.meta.node_counts.get("pregrasp", 0),
             "roadmap_bytes": rm.nbytes, "kpaths_bytes": rm.kpaths_nbytes}
 
 
