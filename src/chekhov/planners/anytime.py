@@ -70,7 +70,7 @@ class AnytimeRun:
         found = Solution(np.asarray(path), time.perf_counter() - self.query.t0, stage, length)
         self.solutions.append(found)
         self.best_certificate, self.best_seed = certificate, seed
-        self.best_info = dict(info or {})
+        self.best_info.update(info or {})
         if self.query.on_solution is not None:
             self.query.on_solution(found)
         return True

@@ -15,7 +15,7 @@ from chekhov.errors import ChekhovError
 from chekhov.planners.anytime import AnytimeRun
 from chekhov.planners.base import PlannerBase, PlanResult, path_length, resample_path
 from chekhov.planners.query import PlanQuery
-from chekhov.planners.shortcut import shortcut_path
+from chekhov.planners.shortcut import partial_shortcut, shortcut_path
 from chekhov.planners.status import PlanStatus, Stage, scalar_items
 from chekhov.planners.trajopt_planner import optimise_report
 from chekhov.roadmap.graph import Roadmap
@@ -53,6 +53,8 @@ class RoadmapTrajOptConfig:
         straight_line_ratio: after the first answer, TrajOpt from a straight line is tried
             only when that answer is longer than this times the straight line (in joint
             space) — a per-query decision from what is cheap to know.
+        simplify_rounds: rounds of shortcuts between any two points of the seed (batches of
+            16 random pairs, the best free one spliced in; 0: none) before TrajOpt.
         improve_time_s: s after the first certified answer during which improvements
             (straight-line TrajOpt, TrajOpt from the seed) may still start; the call returns
             when they end (never after its time limit).
@@ -70,6 +72,7 @@ class RoadmapTrajOptConfig:
     repair_reserve: float = 0.2
     straight_line_ratio: float = 1.2
     improve_time_s: float = 0.1
+    simplify_rounds: int = 8
 
     def __post_init__(self) -> None:
         for name in ("straight_line_time_s", "fallback_time_s", "improve_time_s",
@@ -190,6 +193,8 @@ class RoadmapTrajOpt(PlannerBase):
             stop = min(stop, time.perf_counter() + cfg.improve_time_s)
         if seed is not None and seed_from is Stage.ROADMAP_SEED and cfg.goal_routes > 1:
             seed = self._more_routes(run, seed, stop)
+        if seed is not None and cfg.simplify_rounds > 0:
+            seed = self._simplify(run, seed, stop)
         line_ok = False
         q_line = self._line_goal(run, seed)
         if q_line is not None:
@@ -221,6 +226,19 @@ class RoadmapTrajOpt(PlannerBase):
         if best is not None and path_length(best) < path_length(seed) - 1e-9:
             run.offer(best, Stage.ROUTES, seed=best, info={"roadmap_seed": best})
             return best
+        return seed
+
+    def _simplify(self, run: AnytimeRun, seed: Array, stop: float) -> Array:
+        """Shortcuts between any two points of the seed (seeded per query: the same query,
+        the same answer); offered, and the new seed, when shorter."""
+        t = time.perf_counter()
+        short = partial_shortcut(self.world.fast, seed, np.random.default_rng(0),
+                                 rounds=self.config.simplify_rounds, deadline=stop)
+        better = path_length(short) < path_length(seed) - 1e-9
+        run.report(Stage.SIMPLIFY, PlanStatus.SOLVED, time.perf_counter() - t, short,
+                   {"saved_rad": path_length(seed) - path_length(short)})
+        if better and run.offer(short, Stage.SIMPLIFY, seed=short):
+            return short
         return seed
 
     def _line_goal(self, run: AnytimeRun, seed: Array | None) -> Array | None:

@@ -40,3 +40,38 @@ def shortcut_path(fast: FastChecker, path: Array, resolution: float = 0.02,
         keep.append(j)
         i = j
     return P[keep]
+
+
+def partial_shortcut(fast: FastChecker, path: Array, rng: np.random.Generator, *,
+                     rounds: int = 8, pairs: int = 16, resolution: float = 0.02,
+                     deadline: float = math.inf) -> Array:
+    """Shortcuts between points anywhere on the path, not only its waypoints (OMPL's
+    ``shortcutPath``): each round draws ``pairs`` random pairs of points along the path (T, K),
+    checks their straight motions in one batch at ``resolution`` rad, and splices in the free
+    one that saves the most length. The ends stay; the result is never longer, and its new
+    segments are free at ``resolution``. No round starts after ``deadline``
+    (``time.perf_counter()`` value, s)."""
+    P = np.atleast_2d(np.asarray(path, dtype=float))
+    for _ in range(rounds):
+        if len(P) < 3 or time.perf_counter() >= deadline:
+            break
+        cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))])
+        S = np.sort(rng.uniform(0.0, cum[-1], size=(pairs, 2)), axis=1)
+        i = np.clip(np.searchsorted(cum, S, side="right") - 1, 0, len(P) - 2)
+        keep = i[:, 0] < i[:, 1]           # on one segment the path is already straight
+        if not keep.any():
+            continue
+        S, i = S[keep], i[keep]
+        seg = np.maximum(cum[i + 1] - cum[i], 1e-12)
+        t = (S - cum[i]) / seg
+        A = P[i[:, 0]] + t[:, :1] * (P[i[:, 0] + 1] - P[i[:, 0]])
+        B = P[i[:, 1]] + t[:, 1:] * (P[i[:, 1] + 1] - P[i[:, 1]])
+        saved = (S[:, 1] - S[:, 0]) - np.linalg.norm(B - A, axis=1)
+        ok = (saved > 1e-6) & fast.motions_valid(A, B, resolution)
+        if not ok.any():
+            continue
+        k = int(np.argmax(np.where(ok, saved, -np.inf)))
+        P = np.vstack([P[: i[k, 0] + 1], A[k], B[k], P[i[k, 1] + 1:]])
+        steps = np.abs(np.diff(P, axis=0)).max(axis=1)
+        P = P[np.concatenate([[True], steps > 1e-12])]   # drop repeated points
+    return P

@@ -62,6 +62,7 @@ class Stage(StrEnum):
     SEED = "seed"                      # another planner's path (X + TrajOpt)
     SHORTCUT = "shortcut"
     ROUTES = "routes"                  # more roadmap routes (other goal IK solutions), shortcut
+    SIMPLIFY = "simplify"              # shortcuts between any two points of the path
     OPTIMISE = "optimise"              # TrajOpt from the seed
     RETRY = "retry"                    # TrajOpt again towards the seed's end configuration
     REPAIR = "repair"                  # a tree into the roadmap when it could not answer
