@@ -92,7 +92,8 @@ def tabletop_pole() -> dict[str, Any]:
     ]
     return {"name": "tabletop_pole",
             "description": "Tabletop pick-and-place: a slender pole in the middle of the table "
-                           "and a box on each side of it.",
+                           "and a box on each side of it; cups, cans and bottles around it and "
+                           "along the table.",
             "robot": "baxter_left", "base_pose": BASE, "objects": objs,
             "regions": [{"name": "above_table", "center": [0.85, 0.25, 1.0],
                          "size": [0.8, 1.5, 0.5], "weight": 3.0}]}
@@ -126,7 +127,8 @@ def tabletop_container() -> dict[str, Any]:
         item("pack_out_0", "pack", (0.70, 0.665), z0, ["top"], yaw=math.pi / 2),
     ]
     return {"name": "tabletop_container",
-            "description": "A table with a large open container; boxes inside and outside it.",
+            "description": "A table with a large open container; boxes, cups and cans in it and "
+                           "beside it.",
             "robot": "baxter_left", "base_pose": BASE, "objects": objs,
             "regions": [{"name": "above_table", "center": [0.85, 0.25, 1.0],
                          "size": [0.8, 1.5, 0.5], "weight": 2.0},
@@ -166,8 +168,8 @@ def shelf_boxes() -> dict[str, Any]:
                                                         round(z + 0.095, 4)],
                         "size": [depth, width, 0.17], "weight": 2.0})
     return {"name": "shelf_boxes",
-            "description": "A 7-level shelf with boxes on each level "
-                           "(narrow gaps: the hard scene).",
+            "description": "A 7-level shelf with two boxes, a can between them and a carton "
+                           "on each level (narrow gaps: the hard scene).",
             "robot": "baxter_left", "base_pose": BASE, "objects": objs, "regions": regions}
 
 
@@ -243,7 +245,8 @@ def panda_cage() -> dict[str, Any]:
     ]
     return {"name": "panda_cage",
             "description": "A Franka Panda at a bench with a cage open towards it and a bar "
-                           "across the opening: reach in past the bar; boxes beside the cage.",
+                           "across the opening: reach in past the bar; boxes, cups "
+                           "and bottles beside the cage.",
             "robot": "panda", "base_pose": PANDA_BASE, "locked_joints": PANDA_FINGERS,
             "objects": objs,
             "regions": [{"name": "inside_cage", "center": [cx, cy, 0.15],
