@@ -50,9 +50,13 @@ class RoadmapTrajOptConfig:
             fallback; its path is shortcut and optimised like a roadmap seed.
         repair_reserve: fraction of the time left (at most 50 ms) kept back from the repair
             search for shortcutting and the exact check of its path.
-        straight_line_ratio: after the first answer, TrajOpt from a straight line is tried
-            only when that answer is longer than this times the straight line (in joint
-            space) — a per-query decision from what is cheap to know.
+        straight_line_ratio, straight_line_max_blocked: after the first answer, TrajOpt from
+            a straight line is tried only when that answer is longer than
+            ``straight_line_ratio`` times the straight line (in joint space) and at most
+            ``straight_line_max_blocked`` of 64 configurations along the line collide — a
+            per-query decision from what is cheap to know. Measured (shelf and kitchen, 40
+            cases each): the line's TrajOpt won 3 of 4 tries with ≤ 18% blocked and 0 of 24
+            with ≥ 23% (each loss ~40 ms).
         simplify_rounds: rounds of shortcuts between any two points of the seed (batches of
             16 random pairs, the best free one spliced in; 0: none) before TrajOpt.
         improve_time_s: s after the first certified answer during which improvements
@@ -71,12 +75,13 @@ class RoadmapTrajOptConfig:
     repair: bool = True
     repair_reserve: float = 0.2
     straight_line_ratio: float = 1.2
+    straight_line_max_blocked: float = 0.2
     improve_time_s: float = 0.1
     simplify_rounds: int = 8
 
     def __post_init__(self) -> None:
         for name in ("straight_line_time_s", "fallback_time_s", "improve_time_s",
-                     "straight_line_ratio"):
+                     "straight_line_ratio", "straight_line_max_blocked"):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and v >= 0):
                 raise ChekhovError(f"RoadmapTrajOptConfig.{name}: must be a number of s >= 0, "
@@ -256,7 +261,16 @@ class RoadmapTrajOpt(PlannerBase):
         if seed is not None and path_length(seed) <= cfg.straight_line_ratio * float(
                 np.linalg.norm(Q[0] - query.q_start)):
             return None
+        if seed is not None and self._blocked_fraction(query.q_start, Q[0]) \
+                > cfg.straight_line_max_blocked:
+            return None
         return Q[0]
+
+    def _blocked_fraction(self, q0: Array, q1: Array) -> float:
+        """The share of 64 configurations along the straight line q0 → q1 that the fast
+        checker finds in collision (about 60 µs)."""
+        t = np.linspace(0.0, 1.0, 64)[:, None]
+        return 1.0 - float(self.world.fast.valid((1 - t) * q0 + t * q1).mean())
 
     def _optimise(self, run: AnytimeRun, seed: Array, stage: Stage, stop: float, kind: str,
                   retry: bool = False) -> bool:
