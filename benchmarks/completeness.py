@@ -44,6 +44,7 @@ import numpy as np
 import pinocchio as pin
 
 from chekhov import Goal, Shape, World, builtin_scenes, load_or_build_roadmap
+from chekhov.cases import sample_free
 from chekhov.planners.registry import make_planner
 from chekhov.planners.status import Stage
 from chekhov.roadmap.config import RoadmapConfig
@@ -51,16 +52,6 @@ from chekhov.roadmap.graph import Roadmap
 
 FAMILIES = ("static", "dynamic", "boxed", "empty_roadmap")
 Obstacles = dict[str, tuple[Shape, np.ndarray]]
-
-
-def free_configurations(world: World, n: int, rng: np.random.Generator) -> np.ndarray:
-    """n configurations (n, K) free for both checkers (fast first)."""
-    out: list[np.ndarray] = []
-    while len(out) < n:
-        Q = world.robot.sample_uniform(rng, 8 * (n - len(out)) + 16)
-        Q = Q[world.fast.valid(Q)]
-        out += [q for q in Q if world.exact.is_valid(q)][: n - len(out)]
-    return np.array(out)
 
 
 def _shape(rng: np.random.Generator, i: int) -> Shape:
@@ -77,7 +68,7 @@ def _at(p: np.ndarray) -> np.ndarray:
 
 def random_obstacles(world: World, rng: np.random.Generator, n: int) -> Obstacles:
     """n shapes at the end-effector positions of random free configurations."""
-    Q = free_configurations(world, n, rng)
+    Q = sample_free(world, rng, n)
     return {f"dyn{i}": (_shape(rng, i), _at(world.robot.compute_ee_pose(q)[:3, 3]))
             for i, q in enumerate(Q)}
 
@@ -118,7 +109,7 @@ def make_case(world: World, family: str, rng: np.random.Generator,
     """(start, goal, dynamic obstacles) with the start and goal configurations free in the
     world with those obstacles (exact checker)."""
     for _ in range(200):
-        q0, q1 = free_configurations(world, 2, rng)
+        q0, q1 = sample_free(world, rng, 2)
         obstacles: Obstacles = {}
         if family == "dynamic":
             obstacles = random_obstacles(world, rng, 6)
@@ -202,7 +193,7 @@ def run_family(scene: str, family: str, n: int, time_limit: float, seed: int, ca
 def _fixed_case(world: World, rng: np.random.Generator, pregrasps: list[np.ndarray]
                 ) -> tuple[np.ndarray, Goal]:
     """A free start and a goal (:func:`pick_goal`) in the world as it is now."""
-    q0, q1 = free_configurations(world, 2, rng)
+    q0, q1 = sample_free(world, rng, 2)
     return q0, pick_goal(world, rng, q1, pregrasps)
 
 
