@@ -1,8 +1,9 @@
 """The paper's solvability pass: every case must be solved by at least one planner.
 
 Each case is given to the planners in turn (start configuration, goal pose, ``time_limit_s``
-each); a case none of them solves is replaced by a new sample — replacement ``a`` of case ``i``
-comes from the stream ``default_rng([seed, i, a])``, so the candidates are deterministic — and
+each); a case none of them solves is replaced by a new sample of the same family
+(:func:`chekhov.cases.draw_case`) — replacement ``a`` of case ``i`` comes from the stream
+``default_rng([seed, i, a])``, so the candidates are deterministic — and
 the new case is tried again, up to ``max_attempts`` replacements. Which cases get replaced
 depends on the planners' outcomes within their time limits, so a file after a solvability pass
 is the reference to keep with benchmark results (its ``replaced`` field says how many).
@@ -22,8 +23,8 @@ from chekhov.cases import (
     cache_stem,
     cached_cases,
     default_cache_dir,
+    draw_case,
     find_cached,
-    sample_case,
 )
 from chekhov.errors import ChekhovError
 from chekhov.planners.base import Planner
@@ -76,8 +77,8 @@ def solvability_pass(world: World, cases: CaseSet, planners: Sequence[Planner] |
     planners = list(planners) if planners is not None else default_planners(world)
     q_start, q_goal = cases.q_start.copy(), cases.q_goal.copy()
     T_start, T_goal = cases.T_world_ee_start.copy(), cases.T_world_ee_goal.copy()
+    starts, goals = list(cases.start_labels), list(cases.goal_labels)
     replaced, replaced_idx, unsolved = 0, [], []
-    robot = world.robot
     for i in range(len(cases)):
         attempt = 0
         while not _solved(planners, q_start[i], Goal.pose(T_goal[i]), time_limit_s):
@@ -85,16 +86,19 @@ def solvability_pass(world: World, cases: CaseSet, planners: Sequence[Planner] |
                 unsolved.append(i)
                 break
             attempt += 1
-            q_start[i], q_goal[i] = sample_case(world, cases.seed, i, attempt)
-            T_start[i] = robot.compute_ee_pose(q_start[i])
-            T_goal[i] = robot.compute_ee_pose(q_goal[i])
+            d = draw_case(world, cases.family, cases.seed, i, attempt)
+            q_start[i], q_goal[i], T_start[i], T_goal[i] = d.q_start, d.q_goal, d.T_start, \
+                d.T_goal
+            if cases.family == "tasks":
+                starts[i], goals[i] = d.start_label, d.goal_label
             replaced += 1
         if attempt:
             replaced_idx.append(i)
         if progress is not None:
             progress(i + 1, len(cases))
     out = replace(cases, q_start=q_start, q_goal=q_goal, T_world_ee_start=T_start,
-                  T_world_ee_goal=T_goal, replaced=cases.replaced + replaced)
+                  T_world_ee_goal=T_goal, replaced=cases.replaced + replaced,
+                  start_labels=tuple(starts), goal_labels=tuple(goals))
     return SolvabilityReport(out, replaced, tuple(replaced_idx), tuple(unsolved),
                              tuple(p.name for p in planners), float(time_limit_s),
                              time.perf_counter() - t0)
@@ -106,17 +110,18 @@ def _solved(planners: Sequence[Planner], q_start: np.ndarray, goal: Goal,
 
 
 def cached_solvable_cases(world: World, n: int, seed: int = 0,
-                          cache_dir: str | Path | None = None, time_limit_s: float = 1.0
-                          ) -> CaseSet:
-    """``cached_cases(world, n, seed)`` after a solvability pass with the default planner
-    (RRTConnect, ``time_limit_s`` s per case), cached beside them
-    (``{scene}-{hash[:12]}-s{seed}-solvable-n{n}.npz``): what ``chekhov bench`` uses when no
-    case file is given, so no case that nothing solves counts against every planner."""
+                          cache_dir: str | Path | None = None, time_limit_s: float = 1.0,
+                          family: str = "random") -> CaseSet:
+    """``cached_cases(world, n, seed, family=family)`` after a solvability pass with the
+    default planner (RRTConnect, ``time_limit_s`` s per case), cached beside them
+    (``{scene}-{hash[:12]}-{family}-s{seed}-solvable-n{n}.npz``): what ``chekhov bench`` uses
+    when no case file is given, so no case that nothing solves counts against every
+    planner."""
     d = Path(cache_dir) if cache_dir is not None else default_cache_dir()
-    stem = cache_stem(world, seed, "-solvable")
-    cases = find_cached(world, d, stem, n)
+    stem = cache_stem(world, seed, "-solvable", family)
+    cases = find_cached(world, d, stem, n, family)
     if cases is None:
-        cases = solvability_pass(world, cached_cases(world, n, seed, d), None,
+        cases = solvability_pass(world, cached_cases(world, n, seed, d, family), None,
                                  time_limit_s).cases
         cases.save(d / f"{stem}-n{n}.npz")
     return cases

@@ -1,6 +1,6 @@
 """Case commands: ``chekhov cases generate`` and ``chekhov cases info``.
 
-    chekhov cases generate SCENE --n 5000 --seed S [--out FILE]
+    chekhov cases generate SCENE --n 5000 --seed S [--family random|tasks] [--out FILE]
                            [--solvability-limit S | --no-solvability] [--planners NAME...]
     chekhov cases info FILE [--scene SCENE]
 """
@@ -22,7 +22,8 @@ MAX_CASES = 1_000_000
 
 def _check_generate_args(args: argparse.Namespace) -> Path:
     """Check the scene, the planners and the output file before any work; returns the output
-    path (default ``SCENE-sSEED-nN.npz``). Fills in the solvability defaults."""
+    path (default ``SCENE-sSEED-nN.npz``; ``SCENE-tasks-sSEED-nN.npz`` for the tasks
+    family). Fills in the solvability defaults."""
     from chekhov.planners.registry import canonical_planner_name
     from chekhov.scene.io import load_scene
 
@@ -43,7 +44,8 @@ def _check_generate_args(args: argparse.Namespace) -> Path:
             raise ChekhovError(f"--planners: {name} is listed twice in {args.planners}")
         names.append(name)
     args.planners = names
-    out = args.out if args.out else f"{scene.name}-s{args.seed}-n{args.n}.npz"
+    family = "" if args.family == "random" else f"-{args.family}"
+    out = args.out if args.out else f"{scene.name}{family}-s{args.seed}-n{args.n}.npz"
     return checks.output_file(out, "--out")
 
 
@@ -57,9 +59,9 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     out = _check_generate_args(args)
     world = World.load(args.scene)
     t0 = time.perf_counter()
-    cases = generate_cases(world, args.n, args.seed)
-    print(f"generated {len(cases)} cases for '{world.scene.name}' (seed {args.seed}) in "
-          f"{time.perf_counter() - t0:.1f} s")
+    cases = generate_cases(world, args.n, args.seed, args.family)
+    print(f"generated {len(cases)} cases of family {args.family} for '{world.scene.name}' "
+          f"(seed {args.seed}) in {time.perf_counter() - t0:.1f} s")
     if not args.no_solvability:
         planners = [make_planner(name, world, lambda: load_or_build_roadmap(world),
                                  seed=args.seed) for name in args.planners]
@@ -97,6 +99,13 @@ def _cmd_info(args: argparse.Namespace) -> int:
     print(f"  robot      {cases.robot} ({cases.dof} joints: {', '.join(cases.joint_names)})")
     print(f"  cases      {len(cases)} (seed {cases.seed}, {cases.replaced} replaced by "
           "solvability passes)")
+    print(f"  family     {cases.family}")
+    if cases.family == "tasks":
+        ready = sum(1 for x in cases.start_labels if x == "ready")
+        place = sum(1 for x in cases.goal_labels if x.startswith("place:"))
+        print(f"  starts     {ready} at the ready configuration, {len(cases) - ready} at "
+              "pre-grasps")
+        print(f"  goals      {len(cases) - place} pre-grasp poses, {place} place poses")
     print(f"  start→goal joint distance (rad): min {d.min():.2f}  median {np.median(d):.2f}  "
           f"max {d.max():.2f}")
     return 0
@@ -105,14 +114,19 @@ def _cmd_info(args: argparse.Namespace) -> int:
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("cases", help="generate and inspect planning test cases")
     csub = p.add_subparsers(dest="cases_command", required=True)
-    g = csub.add_parser("generate", help="random start/goal cases for a scene (deterministic "
-                        "for a seed), with the paper's solvability pass")
+    g = csub.add_parser("generate", help="start/goal cases for a scene (deterministic for a "
+                        "seed), with the paper's solvability pass")
     g.add_argument("scene", help="built-in scene name or scene YAML file")
     g.add_argument("--n", type=checks.int_at_least(1, MAX_CASES), default=5000,
                    help="number of cases (default 5000)")
     g.add_argument("--seed", type=checks.SEED, default=0,
                    help=f"seed of the cases, 0..{checks.SEED_MAX} (default 0)")
-    g.add_argument("--out", metavar="FILE", help="output .npz (default SCENE-sSEED-nN.npz)")
+    g.add_argument("--family", choices=checks.CASE_FAMILIES, default="random",
+                   help="random: start and goal configurations uniform within the joint "
+                        "limits (the paper's, default); tasks: from a pre-grasp (or the ready) "
+                        "configuration to another object's pre-grasp or a place pose")
+    g.add_argument("--out", metavar="FILE", help="output .npz (default SCENE-sSEED-nN.npz, "
+                   "SCENE-tasks-sSEED-nN.npz for --family tasks)")
     g.add_argument("--solvability-limit", type=checks.positive_seconds, metavar="S",
                    help="time limit per planner and case of the solvability pass, s > 0 "
                         "(default 1)")
@@ -121,7 +135,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "bench` (default RRTConnect)")
     g.add_argument("--no-solvability", action="store_true",
                    help="skip the solvability pass (the cases are then exactly "
-                        "generate_cases(n, seed))")
+                        "generate_cases(n, seed, family))")
     g.set_defaults(func=_cmd_generate)
     i = csub.add_parser("info", help="summary of a case file")
     i.add_argument("file", metavar="FILE", help="case file (.npz)")

@@ -23,6 +23,9 @@ from chekhov.errors import ChekhovError
 SEED_MAX = 2**32 - 1
 """Largest seed: numpy takes any non-negative integer, OMPL's seed is a 32-bit unsigned."""
 
+CASE_FAMILIES = ("random", "tasks")
+"""``chekhov.cases.FAMILIES``, without importing it (it loads the world) for ``--help``."""
+
 _SQLITE_MAGIC = b"SQLite format 3\x00"
 
 
