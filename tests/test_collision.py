@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from chekhov import Shape
+from chekhov.collision.codes import OBSTACLE
 from chekhov.collision.exact import densify
 from chekhov.collision.fast import pinocchio_joint_placements
 
@@ -59,7 +60,7 @@ def test_contacts_normals_match_finite_differences(world_of, rng):
     q = None
     for cand in w.robot.sample_uniform(rng, 500):
         c = fast.contacts(cand, 0.05)
-        if len(c) and np.any(c.kind == 0):
+        if len(c) and np.any(c.source == OBSTACLE):
             q = cand
             break
     assert q is not None
@@ -67,14 +68,14 @@ def test_contacts_normals_match_finite_differences(world_of, rng):
     centers = fast.sphere_centers(q)
     from chekhov.collision import kernels
 
-    env = fast._env
-    for i in np.flatnonzero(c.kind == 0)[:10]:
+    env = fast.packed.obstacles
+    for i in np.flatnonzero(c.source == OBSTACLE)[:10]:
         s, o = c.sphere[i], c.other[i]
         x = centers[s]
         eps = 1e-6
-        grad = np.array([(kernels.signed_distance(env[0][o], env[1][o], env[2][o], env[3][o],
+        grad = np.array([(kernels.signed_distance(env.kind[o], env.R[o], env.p[o], env.size[o],
                                                   x + eps * e)
-                          - kernels.signed_distance(env[0][o], env[1][o], env[2][o], env[3][o],
+                          - kernels.signed_distance(env.kind[o], env.R[o], env.p[o], env.size[o],
                                                     x - eps * e)) / (2 * eps)
                          for e in np.eye(3)])
         assert np.allclose(grad, c.normal[i], atol=1e-4)
@@ -232,7 +233,7 @@ def test_certified_motion_checks_equal_the_bisection_checks(world_of):
     A, B = Q[:300], Q[300:600]
     for Y in (B, A + 0.3 * (B - A)):
         got = w.fast.motions_valid(A, Y, 0.02)
-        ref = validity.motions_valid(A, Y, 0.02, *w.fast._args())
+        ref = validity.motions_valid(A, Y, 0.02, w.fast.packed)
         np.testing.assert_array_equal(got, ref)
         assert 0 < got.mean() < 1
 
@@ -244,8 +245,39 @@ def test_group_order_and_coarse_grids_do_not_change_decisions(world_of, rng):
 
     fast = world_of("shelf_boxes").fast
     Q = fast._as_batch(fast.robot.sample_uniform(rng, 20000))
-    args = list(fast._args())
-    origin, h, delta, V, gfix, _, _, order = args[8]
-    assert sorted(order.tolist()) == list(range(len(gfix)))
-    args[8] = (origin, h, delta, V, gfix, h, V, np.arange(len(gfix), dtype=np.int64))
-    np.testing.assert_array_equal(validity.valid_batch(Q, *args), fast.valid(Q))
+    g = fast.packed.grids
+    assert sorted(g.order.tolist()) == list(range(len(g.fixed)))
+    plain = fast.packed._replace(grids=g._replace(
+        coarse_h=g.h, inv_coarse_h=g.inv_h, coarse=g.fine,
+        order=np.arange(len(g.fixed), dtype=np.int64)))
+    np.testing.assert_array_equal(validity.valid_batch(Q, plain), fast.valid(Q))
+
+
+def test_packed_world_dynamic_updates_repack_only_the_obstacles(world_of):
+    """Adding, moving and removing a dynamic obstacle replaces the packed world's obstacle
+    fields only (grids, spheres, fixed parts are the same objects) and changes the answers."""
+    from chekhov.collision.fast import FastChecker
+    from chekhov.collision.packed import GridCache
+    from chekhov.robot.chain_kinematics import ChainKinematics
+
+    w = world_of("tabletop_pole")
+    fast = FastChecker(w.robot, w.scene, grid_cache=GridCache())
+    before = fast.packed
+    Q = w.robot.sample_uniform(np.random.default_rng(3), 2000)
+    free0 = fast.valid(Q)
+    np.testing.assert_array_equal(free0, w.fast.valid(Q))
+    x = fast.sphere_centers(Q[np.flatnonzero(free0)[0]])[-1]
+    fast.add_obstacle("probe", Shape("sphere", (0.05,)), np.block(
+        [[np.eye(3), x[:, None]], [np.zeros((1, 3)), np.ones((1, 1))]]))
+    after = fast.packed
+    assert after.grids is before.grids and after.fixed is before.fixed
+    assert after.spheres is before.spheres and after.chain is before.chain
+    assert len(after.dynamic.kind) == len(before.dynamic.kind) + 1
+    assert len(after.obstacles.kind) == len(fast.obstacle_names)
+    assert (~fast.valid(Q) & free0).any()
+    fast.remove_obstacle("probe")
+    np.testing.assert_array_equal(fast.valid(Q), free0)
+    # one FK: the IK chain and the collision chain are the same arrays
+    kin = ChainKinematics.from_robot(w.robot)
+    for a, b in zip(kin.chain, fast.packed.chain, strict=True):
+        np.testing.assert_array_equal(a, b)

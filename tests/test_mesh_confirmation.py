@@ -9,7 +9,8 @@ import pinocchio as pin
 import pytest
 
 from chekhov import Robot, World
-from chekhov.collision.gjk import HULL, convex_collide
+from chekhov.collision.codes import HULL
+from chekhov.collision.gjk import convex_collide
 from chekhov.collision.primitives import hull_parts, support_points
 from chekhov.scene.io import scene_from_dict
 

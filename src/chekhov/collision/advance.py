@@ -27,22 +27,10 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
+from chekhov.robot.robot import joint_axis
+
 Array = NDArray[np.float64]
 EPS = 1e-4  # m: a pair closer than this at a checked configuration gets the collision test
-
-
-_AXES = {"RX": (1.0, 0.0, 0.0), "RY": (0.0, 1.0, 0.0), "RZ": (0.0, 0.0, 1.0)}
-
-
-def joint_axis(joint: pin.JointModel) -> Array | None:
-    """Unit rotation axis of a revolute joint in its own frame; None for any other joint."""
-    name = joint.shortname()
-    if name.startswith("JointModelR") and name[-2:] in _AXES:
-        return np.array(_AXES[name[-2:]])
-    if name == "JointModelRevoluteUnaligned":
-        ax = np.asarray(joint.extract().axis, dtype=float)
-        return ax / np.linalg.norm(ax)
-    return None
 
 
 def _line_distance(x: Array, axis: Array) -> Array:

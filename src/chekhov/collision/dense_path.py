@@ -10,16 +10,36 @@ configuration), the group stays clear for floor(d / D_g) substeps. Self-collisio
 certificates the same way, against D_a + D_b. A configuration whose groups and pairs are all
 certified is free for the fast checker; any other is checked in full by
 :func:`validity.config_collides`. So the answer is the same as checking every configuration
-with the fast checker, at a fraction of the cost.
+with the fast checker, at a fraction of the cost. The lever-arm bounds L_gi are
+``PackedWorld.groups.lever`` (:func:`lever_arms`).
 """
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
-from chekhov.collision.kernels import chain_fk, grid_cell, signed_distance
-from chekhov.collision.validity import _work, config_collides
+from chekhov.collision.codes import NONE
+from chekhov.collision.kernels import grid_cell, signed_distance
+from chekhov.collision.validity import config_collides, make_work
+from chekhov.robot.chain_kinematics import chain_fk_arrays
+
+
+class WalkWork(NamedTuple):
+    """Work arrays of :func:`_walk`: until (G,) / puntil (P,) int64, the last substep each
+    group / self pair is certified free to; step_len (G,) m, the most a group's centre moves
+    in one substep; q (K,); Rc (K, 3, 3), pc (K, 3), gwc (G, 3): joint poses and group
+    centres."""
+
+    until: np.ndarray
+    puntil: np.ndarray
+    step_len: np.ndarray
+    q: np.ndarray
+    Rc: np.ndarray
+    pc: np.ndarray
+    gwc: np.ndarray
 
 
 @njit(cache=True, inline="always")
@@ -31,9 +51,10 @@ def _grid_lower_bound(origin, inv_h, h, delta, values, m, c):  # pragma: no cove
 
 
 @njit(cache=True, inline="always")
-def _group_centres(q, chain, gc, gj, Rc, pc, gwc):  # pragma: no cover - compiled
-    """World centre gwc[g] of each group's bounding sphere at q (runs the chain FK)."""
-    chain_fk(q, chain[0], chain[1], chain[2], chain[3], Rc, pc)
+def _group_centres(q, parent, R0, p0, axis, gc, gj, Rc, pc, gwc):  # pragma: no cover - compiled
+    """World centre gwc[g] of each group's bounding sphere (centre gc[g] on joint gj[g]) at q
+    (runs the chain FK)."""
+    chain_fk_arrays(q, parent, R0, p0, axis, Rc, pc)
     for g in range(gc.shape[0]):
         j = gj[g]
         for a in range(3):
@@ -42,19 +63,23 @@ def _group_centres(q, chain, gc, gj, Rc, pc, gwc):  # pragma: no cover - compile
 
 
 @njit(cache=True)
-def _walk(P0, P1, n, m_first, m_last, check_ends, lever, chain, spheres, groups, static, dyn,
-          fixed, fixed_csr, self_pairs, grids, gexact, rin, work, until, puntil, step_len, q,
-          Rc, pc, gwc):  # pragma: no cover - compiled
+def _walk(P0, P1, n, m_first, m_last, check_ends, world, work, ww
+          ):  # pragma: no cover - compiled
     """Configurations P0 + (m / n)(P1 - P0) for m = m_first … m_last, in order: the first m
-    the fast checker calls colliding, or -1. Clearance certificates skip the rest (see the
-    module docstring); with ``check_ends`` False, m = 0 and m = n only give certificates."""
+    the fast checker calls colliding, or ``NONE``. Clearance certificates skip the rest (see
+    the module docstring); with ``check_ends`` False, m = 0 and m = n only give certificates.
+    ``work``: a ``validity.Work``; ``ww``: a :class:`WalkWork`."""
     K = P0.shape[0]
-    _, gc, gr, gj = groups
-    dk, dR, dp, ds = dyn
-    origin, h, delta, V, gfix = grids[:5]
-    ih = 1.0 / h
+    # every array, out of the named tuples once (see ``validity.py``'s docstring)
+    chain, groups, grids, dyn = world.chain, world.groups, world.grids, world.dynamic
+    parent, R0, p0, axis = chain.parent, chain.R_parent_joint, chain.p_parent_joint, chain.axis
+    gc, gj, gr, lever = groups.centre, groups.joint, groups.radius, groups.lever
+    self_pairs = groups.self_pairs
+    origin, h, ih, delta, V, gfix = (grids.origin, grids.h, grids.inv_h, grids.delta,
+                                     grids.fine, grids.fixed)
+    dk, dR, dp, ds = dyn.kind, dyn.R, dyn.p, dyn.size
+    until, puntil, step_len, q, Rc, pc, gwc = ww
     G = gr.shape[0]
-    Rb, pb, cw, gw, done, cand, pend = work
     for g in range(G):
         until[g] = -1
         s_ = 0.0
@@ -72,8 +97,10 @@ def _walk(P0, P1, n, m_first, m_last, check_ends, lever, chain, spheres, groups,
             if until[g] >= m:
                 continue
             if chain_needed:
-                _group_centres(q, chain, gc, gj, Rc, pc, gwc)
+                _group_centres(q, parent, R0, p0, axis, gc, gj, Rc, pc, gwc)
                 chain_needed = False
+            # a lower bound on the clearance of g's bounding sphere: static obstacles and its
+            # fixed parts (grids), dynamic obstacles (exact)
             d = _grid_lower_bound(origin, ih, h, delta, V, 0, gwc[g])
             if gfix[g] >= 0:
                 d = min(d, _grid_lower_bound(origin, ih, h, delta, V, gfix[g], gwc[g]))
@@ -90,7 +117,7 @@ def _walk(P0, P1, n, m_first, m_last, check_ends, lever, chain, spheres, groups,
             a = self_pairs[k, 0]
             b = self_pairs[k, 1]
             if chain_needed:
-                _group_centres(q, chain, gc, gj, Rc, pc, gwc)
+                _group_centres(q, parent, R0, p0, axis, gc, gj, Rc, pc, gwc)
                 chain_needed = False
             d = np.sqrt((gwc[a, 0] - gwc[b, 0]) ** 2 + (gwc[a, 1] - gwc[b, 1]) ** 2
                         + (gwc[a, 2] - gwc[b, 2]) ** 2) - gr[a] - gr[b]
@@ -102,61 +129,52 @@ def _walk(P0, P1, n, m_first, m_last, check_ends, lever, chain, spheres, groups,
             continue
         if not check_ends and (m == 0 or m == n):
             continue
-        if config_collides(q, chain, spheres, groups, static, dyn, fixed, fixed_csr,
-                           self_pairs, grids, gexact, rin, Rb, pb, cw, gw, done, cand, pend):
+        if config_collides(q, world, work):
             return m
-    return -1
+    return NONE
 
 
 @njit(cache=True)
-def _buffers(K, spheres, groups, static, dyn, fixed, self_pairs):  # pragma: no cover
-    G = groups[2].shape[0]
-    return (_work(K, spheres, groups, static, dyn, fixed, self_pairs),
-            np.empty(G, dtype=np.int64), np.empty(self_pairs.shape[0], dtype=np.int64),
-            np.empty(G), np.empty(K), np.empty((K, 3, 3)), np.empty((K, 3)), np.empty((G, 3)))
+def make_walk_work(K, world):  # pragma: no cover - compiled
+    """A :class:`WalkWork` for ``world`` and K joints."""
+    G = world.groups.radius.shape[0]
+    return WalkWork(np.empty(G, dtype=np.int64),
+                    np.empty(world.groups.self_pairs.shape[0], dtype=np.int64), np.empty(G),
+                    np.empty(K), np.empty((K, 3, 3)), np.empty((K, 3)), np.empty((G, 3)))
 
 
 @njit(cache=True)
-def first_dense_collision(P, substeps, start, lever, chain, spheres, groups, static, dyn,
-                          fixed, fixed_csr, self_pairs, grids, gexact, rin
-                          ):  # pragma: no cover - compiled
+def first_dense_collision(P, substeps, start, world):  # pragma: no cover - compiled
     """Index (>= ``start``) of the first configuration of the densified path that the fast
-    checker calls colliding, or -1. The densified path has ``substeps`` configurations between
-    each pair of waypoints of P (T, K), waypoints included (the order of
-    :func:`exact.densify`); configurations before index ``start`` are not looked at.
-    ``lever`` (G, K): bound on the distance (m) from joint i to group g's centre, 0 when joint
-    i does not move the group."""
+    checker calls colliding, or ``NONE``. The densified path has ``substeps`` configurations
+    between each pair of waypoints of P (T, K), waypoints included (the order of
+    :func:`exact.densify`); configurations before index ``start`` are not looked at."""
     T, K = P.shape
-    work, until, puntil, step_len, q, Rc, pc, gwc = _buffers(K, spheres, groups, static, dyn,
-                                                            fixed, self_pairs)
+    work = make_work(K, world)
+    ww = make_walk_work(K, world)
     n = substeps + 1
     t_first = start // n
     for t in range(t_first, T - 1):
         m_first = start - t * n if t == t_first else 0
-        m = _walk(P[t], P[t + 1], n, m_first, n - 1, True, lever, chain, spheres, groups,
-                  static, dyn, fixed, fixed_csr, self_pairs, grids, gexact, rin, work, until,
-                  puntil, step_len, q, Rc, pc, gwc)
+        m = _walk(P[t], P[t + 1], n, m_first, n - 1, True, world, work, ww)
         if m >= 0:
             return t * n + m
     if start > (T - 1) * n:
-        return -1
-    m = _walk(P[T - 1], P[T - 1], 0, 0, 0, True, lever, chain, spheres, groups, static, dyn,
-              fixed, fixed_csr, self_pairs, grids, gexact, rin, work, until, puntil, step_len,
-              q, Rc, pc, gwc)
-    return (T - 1) * n if m >= 0 else -1
+        return NONE
+    m = _walk(P[T - 1], P[T - 1], 0, 0, 0, True, world, work, ww)
+    return (T - 1) * n if m >= 0 else NONE
 
 
 @njit(cache=True)
-def motions_valid_dense(Q0, Q1, resolution, lever, chain, spheres, groups, static, dyn, fixed,
-                        fixed_csr, self_pairs, grids, gexact, rin):  # pragma: no cover
+def motions_valid_dense(Q0, Q1, resolution, world):  # pragma: no cover - compiled
     """Whether each straight motion Q0[i] → Q1[i] is free at the interior steps k / n,
     n = ceil(length / resolution): the same configurations and answer as
     :func:`validity.motions_valid`, visited in order with clearance certificates instead of in
     bisection order. End points give certificates but are not checked."""
     K = Q0.shape[1]
-    work, until, puntil, step_len, q, Rc, pc, gwc = _buffers(K, spheres, groups, static, dyn,
-                                                            fixed, self_pairs)
-    Rb, pb, cw, gw, done, cand, pend = work
+    work = make_work(K, world)
+    ww = make_walk_work(K, world)
+    q = ww.q
     out = np.empty(Q0.shape[0], dtype=np.bool_)
     for i in range(Q0.shape[0]):
         d = 0.0
@@ -171,17 +189,13 @@ def motions_valid_dense(Q0, Q1, resolution, lever, chain, spheres, groups, stati
             if 0 < k < n:
                 for a in range(K):
                     q[a] = Q0[i, a] + (k / n) * (Q1[i, a] - Q0[i, a])
-                if config_collides(q, chain, spheres, groups, static, dyn, fixed, fixed_csr,
-                                   self_pairs, grids, gexact, rin, Rb, pb, cw, gw, done, cand,
-                                   pend):
+                if config_collides(q, world, work):
                     hit = True
                     break
         if hit:
             out[i] = False
             continue
-        out[i] = _walk(Q0[i], Q1[i], n, 0, n - 1, False, lever, chain, spheres, groups,
-                       static, dyn, fixed, fixed_csr, self_pairs, grids, gexact, rin, work,
-                       until, puntil, step_len, q, Rc, pc, gwc) < 0
+        out[i] = _walk(Q0[i], Q1[i], n, 0, n - 1, False, world, work, ww) < 0
     return out
 
 

@@ -10,30 +10,25 @@ centres c₀ (at q_t) and c₁ (at q_{t+1}) is the capsule ∪_α sphere(c₀ + 
 distance to a convex obstacle is min_α sd(c(α)) - r, a convex problem in α (golden-section
 search); at the minimiser α*, the gradient splits as (1 - α*) nᵀ J_c(q_t) and α* nᵀ J_c(q_{t+1}).
 
-All kernels read the packed arrays of :meth:`FastChecker._exact_args` (exact primitives, no
-grids): chain, spheres, groups, env obstacles, fixed robot parts, fixed pairs, self pairs.
+All kernels read a ``packed.PackedWorld`` (its exact primitives, not its grids): the chain,
+spheres, groups, the scene's obstacles (``world.obstacles``) and the fixed robot parts.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from typing import TYPE_CHECKING
+from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from chekhov.collision.kernels import (
-    chain_fk,
-    signed_distance,
-    signed_distance_normal,
-)
-from chekhov.collision.primitives import bounding_radius
+from chekhov.collision.codes import FIXED, NO_TERM, OBSTACLE, SELF
+from chekhov.collision.kernels import signed_distance, signed_distance_normal
 from chekhov.errors import DeadlineError
-
-if TYPE_CHECKING:
-    from chekhov.collision.fast import FastChecker
+from chekhov.robot.chain_kinematics import chain_fk_arrays
+from chekhov.robot.robot import Robot
 
 Array = NDArray[np.float64]
 
@@ -43,8 +38,23 @@ the next ones as many as the time per segment so far says fit, at most twice the
 :data:`DEADLINE_CHUNK_MAX`: segments of one path differ in cost by 30x and more)."""
 DEADLINE_CHUNK_MAX = 2
 
+SWEPT_ITERATIONS = 30
+"""Golden-section steps of the swept spheres' closest point along a segment."""
+
 _GOLDEN = 0.3819660112501051
-_NO_TERM = 1e3  # distance written to unused slots (m): the hinge is zero there
+
+
+class Candidates(NamedTuple):
+    """Candidate terms (cap of them): distance (m), sphere, other (obstacle, fixed part or
+    sphere index), source (``codes.OBSTACLE`` / ``FIXED`` / ``SELF``), alpha (where along the
+    segment, 0 for a waypoint), normal (cap, 3) (unit, world)."""
+
+    distance: np.ndarray
+    sphere: np.ndarray
+    other: np.ndarray
+    source: np.ndarray
+    alpha: np.ndarray
+    normal: np.ndarray
 
 
 @njit(cache=True, inline="always")
@@ -70,8 +80,11 @@ def _add_point_gradient(n, c, joint, parent, aw, pb, scale, g):  # pragma: no co
 
 
 @njit(cache=True, inline="always")
-def _centres(q, chain, sc, sj, gc, gj, Rb, pb, cw, gw):  # pragma: no cover - compiled
-    chain_fk(q, chain[0], chain[1], chain[2], chain[3], Rb, pb)
+def _centres(q, parent, R0, p0, axis, sc, sj, gc, gj, Rb, pb, cw, gw
+             ):  # pragma: no cover - compiled
+    """Joint poses, sphere centres cw (S, 3) and group centres gw (G, 3), world, at q (the
+    chain's arrays, the spheres' and groups' centres and joints)."""
+    chain_fk_arrays(q, parent, R0, p0, axis, Rb, pb)
     for s in range(sc.shape[0]):
         j = sj[s]
         for a in range(3):
@@ -86,9 +99,10 @@ def _centres(q, chain, sc, sj, gc, gj, Rb, pb, cw, gw):  # pragma: no cover - co
 
 @njit(cache=True, inline="always")
 def _candidates(cap):  # pragma: no cover - compiled
-    """Empty candidate arrays for ``cap`` terms: distance, sphere, other, kind, α, normal."""
-    return (np.empty(cap), np.empty(cap, dtype=np.int64), np.empty(cap, dtype=np.int64),
-            np.empty(cap, dtype=np.int64), np.empty(cap), np.empty((cap, 3)))
+    """Empty :class:`Candidates` for ``cap`` terms."""
+    return Candidates(np.empty(cap), np.empty(cap, dtype=np.int64),
+                      np.empty(cap, dtype=np.int64), np.empty(cap, dtype=np.int64),
+                      np.empty(cap), np.empty((cap, 3)))
 
 
 @njit(cache=True, inline="always")
@@ -166,70 +180,85 @@ def _closest_in_group(kind, R, p, size, g, gstart, sr, cw0, cw1, swept, margin, 
     return best, bs, balpha
 
 
-@njit(cache=True)
-def _obstacle_candidates(t, margin, groups, sr, env, ebound, fixed, fbound, allowed, clusters,
-                         cw0, cw1, gw0, gw1, swept, iters, cd, cs, co, ck, ca, cn
-                         ):  # pragma: no cover - compiled
-    """Push the closest (group, obstacle) pairs within margin; returns how many."""
-    gstart, gc, gr, gj = groups
-    ek, eR, ep, es = env
-    fk, fR, fp, fs = fixed
-    cl_c, cl_r, cl_start, cl_members = clusters
-    G = gr.shape[0]
-    x = np.empty(3)
-    nrm = np.empty(3)
-    n = 0
-    for g in range(G):
-        reach = gr[g] + margin
-        half = 0.0
+@njit(cache=True, inline="always")
+def _push(kind, R, p, size, o, src, g, gstart, sr, cw0, cw1, swept, margin, iters, y, nrm, cd,
+          cs, co, ck, ca, cn, n):  # pragma: no cover - compiled
+    """Push the closest sphere of group g to primitive o (kind, R, p, size: that primitive's;
+    source ``src``) when within margin (y, nrm: (3,) work space) into the candidate arrays
+    (those of :class:`Candidates`); returns the new count."""
+    best, bs, alpha = _closest_in_group(kind, R, p, size, g, gstart, sr, cw0, cw1, swept,
+                                        margin, iters)
+    if best < margin and n < cd.shape[0]:
         for a in range(3):
-            x[a] = 0.5 * (gw0[g, a] + gw1[g, a])
-            half += (gw1[g, a] - gw0[g, a]) ** 2
-        reach += 0.5 * np.sqrt(half)
-        for src in range(2):
-            if src == 0:
-                count = ek.shape[0]
-            else:
-                count = cl_c.shape[0]
-            for o_or_l in range(count):
-                if src == 0:
-                    lo, hi = o_or_l, o_or_l + 1
-                else:  # a cluster of fixed robot parts: cull all of it at once
-                    dc = np.sqrt((x[0] - cl_c[o_or_l, 0]) ** 2 + (x[1] - cl_c[o_or_l, 1]) ** 2
-                                 + (x[2] - cl_c[o_or_l, 2]) ** 2)
-                    if dc - cl_r[o_or_l] >= reach:
-                        continue
-                    lo, hi = cl_start[o_or_l], cl_start[o_or_l + 1]
-                for m in range(lo, hi):
-                    if src == 0:
-                        o = m
-                        kind, R, p, size, bnd = ek[o], eR[o], ep[o], es[o], ebound[o]
-                    else:
-                        o = cl_members[m]
-                        if not allowed[g, o]:
-                            continue
-                        kind, R, p, size, bnd = fk[o], fR[o], fp[o], fs[o], fbound[o]
-                    dc = np.sqrt((x[0] - p[0]) ** 2 + (x[1] - p[1]) ** 2 + (x[2] - p[2]) ** 2)
-                    if dc - bnd >= reach or signed_distance(kind, R, p, size, x) >= reach:
-                        continue
-                    best, bs, alpha = _closest_in_group(kind, R, p, size, g, gstart, sr, cw0,
-                                                        cw1, swept, margin, iters)
-                    if best < margin and n < cd.shape[0]:
-                        for a in range(3):
-                            x[a] = cw0[bs, a] + alpha * (cw1[bs, a] - cw0[bs, a])
-                        signed_distance_normal(kind, R, p, size, x, nrm)
-                        cd[n], cs[n], co[n], ck[n], ca[n] = best, bs, o, src, alpha
-                        cn[n, 0], cn[n, 1], cn[n, 2] = nrm[0], nrm[1], nrm[2]
-                        for a in range(3):
-                            x[a] = 0.5 * (gw0[g, a] + gw1[g, a])
-                        n += 1
+            y[a] = cw0[bs, a] + alpha * (cw1[bs, a] - cw0[bs, a])
+        signed_distance_normal(kind, R, p, size, y, nrm)
+        cd[n], cs[n], co[n], ck[n], ca[n] = best, bs, o, src, alpha
+        cn[n, 0], cn[n, 1], cn[n, 2] = nrm[0], nrm[1], nrm[2]
+        n += 1
     return n
 
 
 @njit(cache=True)
-def _self_candidates(margin, groups, sr, self_pairs, cw, gw, n, cd, cs, co, ck, ca, cn
-                     ):  # pragma: no cover - compiled
-    gstart, gc, gr, gj = groups
+def _obstacle_candidates(margin, world, cw0, cw1, gw0, gw1, swept, iters, cand
+                         ):  # pragma: no cover - compiled
+    """Push the closest (group, obstacle / fixed part) pairs within margin into ``cand``;
+    returns how many.
+
+    The (group, primitive) pairs are culled in the loop itself, and :func:`_push` is called
+    on the few that remain: an inlined call binds each array argument anew (counting a
+    reference to it), which, per pair, cost 4 times the culling (measured)."""
+    # every array, out of the named tuples once (see ``validity.py``'s docstring)
+    gstart, gr, sr = world.groups.start, world.groups.radius, world.spheres.radius
+    env, fixed = world.obstacles, world.fixed
+    ek, eR, ep, es, eb = env.kind, env.R, env.p, env.size, env.bound
+    fprims, cl, allowed = fixed.prims, fixed.clusters, fixed.allowed
+    fk, fR, fp, fs, fb = fprims.kind, fprims.R, fprims.p, fprims.size, fprims.bound
+    clc, clr, cls, clm = cl.centre, cl.radius, cl.start, cl.members
+    cd, cs, co, ck, ca, cn = cand
+    x = np.empty(3)
+    y = np.empty(3)
+    nrm = np.empty(3)
+    n = 0
+    for g in range(gr.shape[0]):
+        half = 0.0
+        for a in range(3):
+            x[a] = 0.5 * (gw0[g, a] + gw1[g, a])
+            half += (gw1[g, a] - gw0[g, a]) ** 2
+        # the group's centre mid-segment, its radius + margin + half the centre's travel
+        reach = gr[g] + margin + 0.5 * np.sqrt(half)
+        for o in range(ek.shape[0]):
+            dc = np.sqrt((x[0] - ep[o, 0]) ** 2 + (x[1] - ep[o, 1]) ** 2
+                         + (x[2] - ep[o, 2]) ** 2)
+            if dc - eb[o] >= reach or signed_distance(ek[o], eR[o], ep[o], es[o], x) >= reach:
+                continue
+            n = _push(ek[o], eR[o], ep[o], es[o], o, OBSTACLE, g, gstart, sr, cw0, cw1, swept,
+                      margin, iters, y, nrm, cd, cs, co, ck, ca, cn, n)
+        for c in range(clc.shape[0]):  # a cluster of fixed robot parts: cull it at once
+            dc = np.sqrt((x[0] - clc[c, 0]) ** 2 + (x[1] - clc[c, 1]) ** 2
+                         + (x[2] - clc[c, 2]) ** 2)
+            if dc - clr[c] >= reach:
+                continue
+            for m in range(cls[c], cls[c + 1]):
+                o = clm[m]
+                if not allowed[g, o]:
+                    continue
+                dc = np.sqrt((x[0] - fp[o, 0]) ** 2 + (x[1] - fp[o, 1]) ** 2
+                             + (x[2] - fp[o, 2]) ** 2)
+                if dc - fb[o] >= reach or \
+                        signed_distance(fk[o], fR[o], fp[o], fs[o], x) >= reach:
+                    continue
+                n = _push(fk[o], fR[o], fp[o], fs[o], o, FIXED, g, gstart, sr, cw0, cw1, swept,
+                          margin, iters, y, nrm, cd, cs, co, ck, ca, cn, n)
+    return n
+
+
+@njit(cache=True)
+def _self_candidates(margin, world, cw, gw, n, cand):  # pragma: no cover - compiled
+    """Push the closest sphere pair of each self pair of groups within margin into ``cand``
+    (from index n); returns the new count."""
+    gstart, gr = world.groups.start, world.groups.radius
+    self_pairs, sr = world.groups.self_pairs, world.spheres.radius
+    cd, cs, co, ck, ca, cn = cand
     for i in range(self_pairs.shape[0]):
         a, b = self_pairs[i, 0], self_pairs[i, 1]
         dx = gw[a] - gw[b]
@@ -245,7 +274,7 @@ def _self_candidates(margin, groups, sr, self_pairs, cw, gw, n, cd, cs, co, ck, 
         if best < margin and n < cd.shape[0]:
             dx = cw[bs] - cw[bt]
             nd = np.sqrt(np.sum(dx * dx))
-            cd[n], cs[n], co[n], ck[n], ca[n] = best, bs, bt, 2, 0.0
+            cd[n], cs[n], co[n], ck[n], ca[n] = best, bs, bt, SELF, 0.0
             if nd > 1e-12:
                 cn[n] = dx / nd
             else:
@@ -256,118 +285,119 @@ def _self_candidates(margin, groups, sr, self_pairs, cw, gw, n, cd, cs, co, ck, 
 
 
 @njit(cache=True)
-def waypoint_terms(Q, margin, C, with_obstacles, chain, spheres, groups, env, ebound, fixed,
-                   fbound, allowed, clusters, self_pairs, dist, grad
+def waypoint_terms(Q, margin, C, with_obstacles, dist, grad, world
                    ):  # pragma: no cover - compiled
     """Discrete terms at each waypoint Q[t]: the C closest (group, obstacle / fixed part /
     other group) pairs within ``margin`` (m): dist (T, C) m and grad (T, C, K) m/rad; unused
-    slots get dist 1e3 and a zero gradient. ``with_obstacles`` False keeps self-collision only
-    (when continuous terms already cover the obstacles)."""
+    slots get dist ``NO_TERM`` and a zero gradient. ``with_obstacles`` False keeps
+    self-collision only (when continuous terms already cover the obstacles)."""
     T, K = Q.shape
-    parent, axis = chain[0], chain[3]
-    sc, sr, sj = spheres
-    gstart, gc, gr, gj = groups
-    S, G = sc.shape[0], gc.shape[0]
+    chain, spheres, groups = world.chain, world.spheres, world.groups
+    parent, R0, p0, axis = chain.parent, chain.R_parent_joint, chain.p_parent_joint, chain.axis
+    sc, sj, gc, gj = spheres.centre, spheres.joint, groups.centre, groups.joint
+    S, G = sj.shape[0], gc.shape[0]
     Rb = np.empty((K, 3, 3))
     pb = np.empty((K, 3))
     aw = np.empty((K, 3))
     cw = np.empty((S, 3))
     gw = np.empty((G, 3))
-    cd, cs, co, ck, ca, cn = _candidates(G * (env[0].shape[0] + fixed[0].shape[0])
-                                         + self_pairs.shape[0] + 1)
+    cand = _candidates(G * (world.obstacles.kind.shape[0] + world.fixed.prims.kind.shape[0])
+                       + groups.self_pairs.shape[0] + 1)
+    cd, cs, co, ck, ca, cn = cand
     order = np.empty(C, dtype=np.int64)
     for t in range(T):
-        _centres(Q[t], chain, sc, sj, gc, gj, Rb, pb, cw, gw)
+        _centres(Q[t], parent, R0, p0, axis, sc, sj, gc, gj, Rb, pb, cw, gw)
         _world_axes(Rb, axis, aw)
         n = 0
         if with_obstacles:
-            n = _obstacle_candidates(t, margin, groups, sr, env, ebound, fixed, fbound, allowed,
-                                     clusters, cw, cw, gw, gw, False, 0, cd, cs, co, ck, ca, cn)
-        n = _self_candidates(margin, groups, sr, self_pairs, cw, gw, n, cd, cs, co, ck, ca, cn)
+            n = _obstacle_candidates(margin, world, cw, cw, gw, gw, False, 0, cand)
+        n = _self_candidates(margin, world, cw, gw, n, cand)
         m = _select(cd, n, C, order)
         for k in range(C):
             grad[t, k, :] = 0.0
             if k >= m:
-                dist[t, k] = _NO_TERM
+                dist[t, k] = NO_TERM
                 continue
             i = order[k]
+            s = cs[i]
             dist[t, k] = cd[i]
-            _add_point_gradient(cn[i], cw[cs[i]], sj[cs[i]], parent, aw, pb, 1.0, grad[t, k])
-            if ck[i] == 2:
+            _add_point_gradient(cn[i], cw[s], sj[s], parent, aw, pb, 1.0, grad[t, k])
+            if ck[i] == SELF:
                 u = co[i]
                 _add_point_gradient(cn[i], cw[u], sj[u], parent, aw, pb, -1.0, grad[t, k])
 
 
 @njit(cache=True)
-def segment_terms(Q, margin, C, chain, spheres, groups, env, ebound, fixed, fbound, allowed,
-                  clusters, dist, grad0, grad1, iters=30):  # pragma: no cover - compiled
+def segment_terms(Q, margin, C, dist, grad0, grad1, iters, world
+                  ):  # pragma: no cover - compiled
     """Continuous terms of each segment Q[t] → Q[t+1] against obstacles and fixed robot parts
     (swept spheres): dist (T-1, C) m, grad0 / grad1 (T-1, C, K) m/rad with respect to Q[t] /
-    Q[t+1]; unused slots get dist 1e3 and zero gradients."""
+    Q[t+1]; unused slots get dist ``NO_TERM`` and zero gradients."""
     T, K = Q.shape
-    parent, axis = chain[0], chain[3]
-    sc, sr, sj = spheres
-    gstart, gc, gr, gj = groups
-    S, G = sc.shape[0], gc.shape[0]
+    chain, spheres, groups = world.chain, world.spheres, world.groups
+    parent, R0, p0, axis = chain.parent, chain.R_parent_joint, chain.p_parent_joint, chain.axis
+    sc, sj, gc, gj = spheres.centre, spheres.joint, groups.centre, groups.joint
+    S, G = sj.shape[0], gc.shape[0]
     Rb = np.empty((T, K, 3, 3))
     pb = np.empty((T, K, 3))
     aw = np.empty((T, K, 3))
     cw = np.empty((T, S, 3))
     gw = np.empty((T, G, 3))
     for t in range(T):
-        _centres(Q[t], chain, sc, sj, gc, gj, Rb[t], pb[t], cw[t], gw[t])
+        _centres(Q[t], parent, R0, p0, axis, sc, sj, gc, gj, Rb[t], pb[t], cw[t], gw[t])
         _world_axes(Rb[t], axis, aw[t])
-    cd, cs, co, ck, ca, cn = _candidates(G * (env[0].shape[0] + fixed[0].shape[0]) + 1)
+    cand = _candidates(G * (world.obstacles.kind.shape[0] + world.fixed.prims.kind.shape[0])
+                       + 1)
+    cd, cs, co, ck, ca, cn = cand
     order = np.empty(C, dtype=np.int64)
     for t in range(T - 1):
-        n = _obstacle_candidates(t, margin, groups, sr, env, ebound, fixed, fbound, allowed,
-                                 clusters, cw[t], cw[t + 1], gw[t], gw[t + 1], True, iters,
-                                 cd, cs, co, ck, ca, cn)
+        n = _obstacle_candidates(margin, world, cw[t], cw[t + 1], gw[t], gw[t + 1], True, iters,
+                                 cand)
         m = _select(cd, n, C, order)
         for k in range(C):
             grad0[t, k, :] = 0.0
             grad1[t, k, :] = 0.0
             if k >= m:
-                dist[t, k] = _NO_TERM
+                dist[t, k] = NO_TERM
                 continue
             i = order[k]
             s = cs[i]
+            al = ca[i]
             dist[t, k] = cd[i]
-            _add_point_gradient(cn[i], cw[t, s], sj[s], parent, aw[t], pb[t], 1.0 - ca[i],
+            _add_point_gradient(cn[i], cw[t, s], sj[s], parent, aw[t], pb[t], 1.0 - al,
                                 grad0[t, k])
-            _add_point_gradient(cn[i], cw[t + 1, s], sj[s], parent, aw[t + 1], pb[t + 1],
-                                ca[i], grad1[t, k])
+            _add_point_gradient(cn[i], cw[t + 1, s], sj[s], parent, aw[t + 1],
+                                pb[t + 1], al, grad1[t, k])
+
+
+class KernelRunner(Protocol):
+    """What the distance terms need of a ``FastChecker`` (which warms them up, so this module
+    does not import it): its robot, and ``run_kernel`` (a kernel called with its arguments and
+    the checker's current packed world)."""
+
+    robot: Robot
+
+    def run_kernel(self, kernel: Any, *args: Any) -> Any: ...
 
 
 class TrajectoryDistances:
     """Signed-distance terms of whole trajectories against a :class:`FastChecker`'s world.
 
-    Reads the checker's current obstacles on every call (dynamic ones included). Fixed robot
-    parts are grouped into spatial clusters with bounding spheres, so a link far from the torso
-    skips all of its primitives with one test.
+    Reads the checker's packed world (``FastChecker.packed``) on every call, so its current
+    obstacles (dynamic ones included). Fixed robot parts are grouped into spatial clusters
+    with bounding spheres, so a link far from the torso skips all of its primitives with one
+    test. The kernels compile (or load from numba's cache) on first use: :meth:`warm_up` (or
+    ``FastChecker.warm_up``) does it ahead of a time limit.
     """
 
-    def __init__(self, fast: FastChecker) -> None:
+    def __init__(self, fast: KernelRunner) -> None:
         self.fast = fast
-        chain, spheres, groups, _, fixed, _, self_pairs = fast._exact_args()
-        self._chain, self._spheres, self._groups = chain, spheres, groups
-        self._fixed, self._self_pairs = fixed, self_pairs
-        fk, _, _, fs = fixed
-        self._fbound = bounding_radius(fk, fs)
-        # the fast checker's clusters of fixed robot parts and its (group, part) pairs
-        self._allowed, *clusters = fast._fixed_csr[2:]
-        self._clusters = tuple(clusters)
-        self._env_version = -1
-        q = 0.5 * (fast.robot.lower + fast.robot.upper)  # compile the kernels now, not in a
-        self.segments(np.vstack([q, q + 0.05]), 0.05, 1)  # planner's time limit
-        self.waypoints(q[None], 0.05, 1)
 
-    def _env(self) -> tuple[tuple, Array]:
-        if self._env_version != self.fast.obstacles_version:
-            env = self.fast._exact_args()[3]
-            self._env_cache = (env, bounding_radius(env[0], env[3]))
-            self._env_version = self.fast.obstacles_version
-        return self._env_cache
+    def warm_up(self) -> None:
+        """Compile (or load) the distance-term kernels now."""
+        q = 0.5 * (self.fast.robot.lower + self.fast.robot.upper)
+        self.segments(np.vstack([q, q + 0.05]), 0.05, 1)
+        self.waypoints(q[None], 0.05, 1)
 
     def waypoints(self, Q: Array, margin: float, C: int, with_obstacles: bool = True
                   ) -> tuple[Array, Array]:
@@ -375,10 +405,8 @@ class TrajectoryDistances:
         Q = np.ascontiguousarray(Q, dtype=float)
         T, K = Q.shape
         dist, grad = np.empty((T, C)), np.empty((T, C, K))
-        env, ebound = self._env()
-        waypoint_terms(Q, float(margin), int(C), bool(with_obstacles), self._chain,
-                       self._spheres, self._groups, env, ebound, self._fixed, self._fbound,
-                       self._allowed, self._clusters, self._self_pairs, dist, grad)
+        self.fast.run_kernel(waypoint_terms, Q, float(margin), int(C), bool(with_obstacles),
+                             dist, grad)
         return dist, grad
 
     def segments(self, Q: Array, margin: float, C: int, deadline: float = math.inf
@@ -392,16 +420,14 @@ class TrajectoryDistances:
         T, K = Q.shape
         dist = np.empty((T - 1, C))
         g0, g1 = np.empty((T - 1, C, K)), np.empty((T - 1, C, K))
-        env, ebound = self._env()
         a, step = 0, T - 1 if math.isinf(deadline) else 1
         while a < T - 1:
             if time.perf_counter() > deadline:
                 raise DeadlineError("time limit reached while evaluating collision terms")
             b = min(a + step, T - 1)
             t = time.perf_counter()
-            segment_terms(Q[a:b + 1], float(margin), int(C), self._chain, self._spheres,
-                          self._groups, env, ebound, self._fixed, self._fbound, self._allowed,
-                          self._clusters, dist[a:b], g0[a:b], g1[a:b])
+            self.fast.run_kernel(segment_terms, Q[a:b + 1], float(margin), int(C), dist[a:b],
+                                 g0[a:b], g1[a:b], SWEPT_ITERATIONS)
             per_segment = (time.perf_counter() - t) / (b - a)
             step = max(1, min(2 * step, DEADLINE_CHUNK_MAX,
                               int(DEADLINE_CHUNK_S / max(per_segment, 1e-7))))

@@ -9,10 +9,10 @@ certificate that does not depend on GJK's numerics: a unit direction u with
 
 h being the closed-form support value of each primitive. Anything else (touching, overlap,
 GJK not converged, a degenerate simplex) answers "collision", so the fast checker stays
-conservative. Encoding as in ``kernels``: kind 0 sphere (radius), 1 box (half extents),
-2 cylinder along its z axis (radius, half length); world pose R (3, 3), p (3,). Metres.
+conservative. Kinds as in ``codes``: ``SPHERE`` (radius), ``BOX`` (half extents),
+``CYLINDER`` along its z axis (radius, half length); world pose R (3, 3), p (3,). Metres.
 
-Kind 3 (``HULL``) is a convex polytope given by points V[v0:v1] (n, 3) in its own frame (the
+Kind ``HULL`` is a convex polytope given by points V[v0:v1] (n, 3) in its own frame (the
 vertices of a mesh part's convex hull): h(u) = p·u + max over those points of v·(Rᵀu), exact
 for any point set, so the certificate holds for the mesh part whatever the hull's numerics as
 long as the points include every extreme vertex of the part (see ``primitives.hull_parts``).
@@ -24,8 +24,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from chekhov.collision.codes import BOX, HULL, SPHERE
+
 MAX_ITER = 32
-HULL = 3
 
 
 @njit(cache=True, inline="always")
@@ -40,9 +41,9 @@ def support_value(kind, R, p, size, V, v0, v1, u):  # pragma: no cover - compile
         for i in range(v0, v1):
             best = max(best, V[i, 0] * l0 + V[i, 1] * l1 + V[i, 2] * l2)
         return h + best
-    if kind == 0:
+    if kind == SPHERE:
         return h + size[0] * np.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
-    if kind == 1:
+    if kind == BOX:
         for i in range(3):
             h += size[i] * abs(R[0, i] * u[0] + R[1, i] * u[1] + R[2, i] * u[2])
         return h
@@ -69,12 +70,12 @@ def support_point(kind, R, p, size, V, v0, v1, u, sign, out):  # pragma: no cove
                 k = i
         for a in range(3):
             out[a] += R[a, 0] * V[k, 0] + R[a, 1] * V[k, 1] + R[a, 2] * V[k, 2]
-    elif kind == 0:
+    elif kind == SPHERE:
         n = np.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
         if n > 0.0:
             for a in range(3):
                 out[a] += sign * size[0] * u[a] / n
-    elif kind == 1:
+    elif kind == BOX:
         for i in range(3):
             d = sign * (R[0, i] * u[0] + R[1, i] * u[1] + R[2, i] * u[2])
             s = size[i] if d >= 0.0 else -size[i]

@@ -1,10 +1,10 @@
 """Signed-distance grids of static primitives: one lookup decides most sphere tests.
 
 A grid stores, at each voxel centre v, the distance d(v) to the nearest primitive quantised
-down to a multiple of ``delta`` (uint8; 255 means "at least cap"). The distance field is
-1-Lipschitz, so for a sphere (c, r) with nearest voxel centre v: d(v) - |c - v| ≥ r proves it
-free and d(v) + |c - v| < r proves it overlapping. Only the thin band between needs exact
-sphere-primitive tests (see ``kernels.grid_classify``).
+down to a multiple of ``delta`` (uint8; ``codes.GRID_SATURATED`` means "at least cap"). The
+distance field is 1-Lipschitz, so for a sphere (c, r) with nearest voxel centre v:
+d(v) - |c - v| ≥ r proves it free and d(v) + |c - v| < r proves it overlapping. Only the
+thin band between needs exact sphere-primitive tests (see ``kernels.grid_classify``).
 
 A *surface* grid (:func:`build_surface_grid`) holds the distance to solid primitives and to
 points sampled on the triangles of meshes (their surface: what the exact checker tests) —
@@ -23,7 +23,9 @@ from numba import njit
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
+from chekhov.collision.codes import GRID_SATURATED
 from chekhov.collision.kernels import signed_distance
+from chekhov.collision.primitives import Primitives
 
 Array = NDArray[np.float64]
 CAP = 0.25  # m: distances beyond this are stored as "at least CAP" (> largest group radius)
@@ -90,7 +92,7 @@ def point_field(lo: Array, hi: Array, h: float, points: Array, reach: float
 
 
 def build_surface_grid(lo: Array, hi: Array, h: float,
-                       prims: tuple[NDArray[np.int64], Array, Array, Array],
+                       prims: Primitives,
                        fields: list[tuple[NDArray[np.int64], Array]], reach: float
                        ) -> DistanceGrid:
     """Surface grid (see the module docstring) over [lo, hi] (m), spacing h (m): distances to
@@ -98,23 +100,23 @@ def build_surface_grid(lo: Array, hi: Array, h: float,
     mesh surfaces (the distance to the nearest such point bounds the distance to the surface
     from above); "at least CAP" elsewhere."""
     vals = np.full(tuple(int(n) for n in _shape(lo, hi, h)), CAP, dtype=np.float64)
-    kind, R, p, size = prims
+    kind, R, p, size = prims.kind, prims.R, prims.p, prims.size
     bound = np.linalg.norm(size, axis=1) if len(kind) else np.zeros(0)
     _fill(lo.astype(float), float(h), kind, R, p, size, bound, vals, float(reach))
     for i0, d in fields:
         box = vals[i0[0]:i0[0] + d.shape[0], i0[1]:i0[1] + d.shape[1], i0[2]:i0[2] + d.shape[2]]
         np.minimum(box, d, out=box)
-    q = np.clip(np.floor(vals / (CAP / 255.0)), 0, 255).astype(np.uint8)
-    return DistanceGrid(lo.astype(float), float(h), CAP / 255.0, q)
+    delta = CAP / GRID_SATURATED
+    q = np.clip(np.floor(vals / delta), 0, GRID_SATURATED).astype(np.uint8)
+    return DistanceGrid(lo.astype(float), float(h), delta, q)
 
 
-def build_grid(lo: Array, hi: Array, h: float,
-               prims: tuple[NDArray[np.int64], Array, Array, Array]) -> DistanceGrid:
+def build_grid(lo: Array, hi: Array, h: float, prims: Primitives) -> DistanceGrid:
     """Grid over the box [lo, hi] (m) at spacing h (m) of the distance to packed primitives."""
     vals = np.full(tuple(int(n) for n in _shape(lo, hi, h)), CAP, dtype=np.float64)
-    kind, R, p, size = prims
+    kind, R, p, size = prims.kind, prims.R, prims.p, prims.size
     bound = np.linalg.norm(size, axis=1) if len(kind) else np.zeros(0)
     _fill(lo.astype(float), float(h), kind, R, p, size, bound, vals)
-    delta = CAP / 255.0
-    q = np.clip(np.floor(vals / delta), 0, 255).astype(np.uint8)
+    delta = CAP / GRID_SATURATED
+    q = np.clip(np.floor(vals / delta), 0, GRID_SATURATED).astype(np.uint8)
     return DistanceGrid(lo.astype(float), float(h), delta, q)

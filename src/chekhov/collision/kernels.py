@@ -1,9 +1,11 @@
-"""Numba kernels of the fast checker: chain FK for spheres, sphere-primitive signed distances,
-grid lookups, minimum distance and contacts (validity tests: ``validity.py``).
+"""Numba kernels of the fast checker: sphere-primitive signed distances, grid lookups,
+minimum distance and contacts (validity tests: ``validity.py``; the chain FK:
+``chekhov.robot.chain_kinematics.chain_fk``). The batch kernels read a
+``packed.PackedWorld``.
 
-Obstacle encoding (world frame): ``kind`` 0 sphere, 1 box, 2 cylinder (z axis); ``R`` (3, 3)
-and ``p`` (3,) its pose; ``size`` sphere (radius, 0, 0), box half extents, cylinder
-(radius, half length, 0). All lengths in metres.
+Obstacle encoding (world frame): ``kind`` ``codes.SPHERE``, ``BOX``, ``CYLINDER`` (z axis);
+``R`` (3, 3) and ``p`` (3,) its pose; ``size`` sphere (radius, 0, 0), box half extents,
+cylinder (radius, half length, 0). All lengths in metres.
 
 Small kernels called from other compiled functions (FK, signed distances, grid lookups) are
 ``inline="always"``: numba does not inline a call into another cached function by itself, and
@@ -18,44 +20,18 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-SPHERE, BOX, CYLINDER = 0, 1, 2
-
-
-@njit(cache=True, inline="always")
-def chain_fk(q, parent, R0, p0, axis, R_out, p_out):  # pragma: no cover - compiled
-    """World pose of each revolute joint of a chain:
-    T_k = T_parent(k) · placement_k · Rot(axis_k, q_k). Writes R_out (K, 3, 3), p_out (K, 3)."""
-    Rq = np.empty((3, 3))
-    A = np.empty((3, 3))
-    for k in range(q.shape[0]):
-        c, s = np.cos(q[k]), np.sin(q[k])
-        x, y, z = axis[k, 0], axis[k, 1], axis[k, 2]
-        C = 1.0 - c
-        Rq[0, 0] = c + x * x * C
-        Rq[0, 1] = x * y * C - z * s
-        Rq[0, 2] = x * z * C + y * s
-        Rq[1, 0] = y * x * C + z * s
-        Rq[1, 1] = c + y * y * C
-        Rq[1, 2] = y * z * C - x * s
-        Rq[2, 0] = z * x * C - y * s
-        Rq[2, 1] = z * y * C + x * s
-        Rq[2, 2] = c + z * z * C
-        pk = parent[k]
-        if pk < 0:
-            for a in range(3):
-                p_out[k, a] = p0[k, a]
-                for b in range(3):
-                    A[a, b] = R0[k, a, b]
-        else:
-            for a in range(3):
-                p_out[k, a] = (R_out[pk, a, 0] * p0[k, 0] + R_out[pk, a, 1] * p0[k, 1]
-                               + R_out[pk, a, 2] * p0[k, 2] + p_out[pk, a])
-                for b in range(3):
-                    A[a, b] = (R_out[pk, a, 0] * R0[k, 0, b] + R_out[pk, a, 1] * R0[k, 1, b]
-                               + R_out[pk, a, 2] * R0[k, 2, b])
-        for a in range(3):
-            for b in range(3):
-                R_out[k, a, b] = A[a, 0] * Rq[0, b] + A[a, 1] * Rq[1, b] + A[a, 2] * Rq[2, b]
+from chekhov.collision.codes import (
+    BOX,
+    FIXED,
+    GRID_SATURATED,
+    INVALID,
+    OBSTACLE,
+    SELF,
+    SPHERE,
+    UNKNOWN,
+    VALID,
+)
+from chekhov.robot.chain_kinematics import chain_fk, chain_fk_arrays
 
 
 @njit(cache=True, inline="always")
@@ -151,7 +127,8 @@ def signed_distance_normal(kind, R, p, size, x, n_out):  # pragma: no cover - co
 @njit(cache=True, inline="always")
 def grid_cell(origin, inv_h, h, values, m, c):  # pragma: no cover - compiled
     """(stored value q, distance e (m) from c to the voxel centre read) of grid m of the
-    stacked grids ``values`` (M, n0, n1, n2), spacing h (m), at point c; q = -1 outside.
+    stacked grids ``values`` (M, n0, n1, n2), spacing h (m), at point c; q = ``codes.NONE``
+    (-1) outside.
 
     Hot: one lookup per sphere. Multiplying by 1 / h, truncating (the coordinates are checked
     to be ≥ -0.5 first, so int(f + 0.5) = floor(f + 0.5)) and indexing the stack directly
@@ -177,36 +154,40 @@ def grid_classify(origin, inv_h, h, delta, values, m, c, r):  # pragma: no cover
     """What grid m of the stacked distance grids ``values`` (see ``grid.py``) proves about
     sphere (c, r).
 
-    Returns 1 when the sphere touches nothing in the grid, -1 when it certainly overlaps a
-    primitive of the grid, 0 when undecided (near a surface or outside the grid). Stored value
+    Returns ``codes.VALID`` when the sphere touches nothing in the grid, ``INVALID`` when it
+    certainly overlaps a primitive of the grid, ``UNKNOWN`` when undecided (near a surface or
+    outside the grid). Stored value
     q at the voxel centre v read bounds the distance: q·delta ≤ d(v) < (q + 1)·delta, and
     |d(c) - d(v)| ≤ |c - v| (the distance field is 1-Lipschitz).
     """
     q, e = grid_cell(origin, inv_h, h, values, m, c)
     if q < 0:
-        return 0
+        return UNKNOWN
     if q * delta - e >= r:
-        return 1
-    if q < 255 and (q + 1) * delta + e < r:
-        return -1
-    return 0
+        return VALID
+    if q < GRID_SATURATED and (q + 1) * delta + e < r:
+        return INVALID
+    return UNKNOWN
 
 
 @njit(cache=True)
-def min_distance_batch(Q, chain, spheres, groups, env, fixed, fixed_pairs, self_pairs
-                       ):  # pragma: no cover - compiled
-    """Smallest signed distance (m) between any sphere and obstacle / other sphere, per row."""
+def min_distance_batch(Q, world):  # pragma: no cover - compiled
+    """Smallest signed distance (m) between any sphere and obstacle / fixed part / other
+    sphere of ``world`` (a ``PackedWorld``), per row of Q."""
     K = Q.shape[1]
     Rb = np.empty((K, 3, 3))
     pb = np.empty((K, 3))
-    sc, sr, sj = spheres
-    gstart, gc, gr, gj = groups
-    ek, eR, ep, es = env
-    fk, fR, fp, fs = fixed
+    # the arrays, out of the named tuples once (see ``validity.py``'s docstring)
+    chain, sph, env, fixed = world.chain, world.spheres, world.obstacles, world.fixed.prims
+    parent, R0, p0, axis = chain.parent, chain.R_parent_joint, chain.p_parent_joint, chain.axis
+    sc, sr, sj = sph.centre, sph.radius, sph.joint
+    gstart, self_pairs, fixed_pairs = world.groups.start, world.groups.self_pairs, world.fixed.pairs
+    ek, eR, ep, es = env.kind, env.R, env.p, env.size
+    fk, fR, fp, fs = fixed.kind, fixed.R, fixed.p, fixed.size
     cw = np.empty((sc.shape[0], 3))
     out = np.empty(Q.shape[0])
     for i in range(Q.shape[0]):
-        chain_fk(Q[i], chain[0], chain[1], chain[2], chain[3], Rb, pb)
+        chain_fk_arrays(Q[i], parent, R0, p0, axis, Rb, pb)
         transform_points(Rb, pb, sj, sc, cw)
         best = np.inf
         for o in range(ek.shape[0]):
@@ -231,8 +212,8 @@ def min_distance_batch(Q, chain, spheres, groups, env, fixed, fixed_pairs, self_
 @njit(cache=True)
 def _primitive_contacts(kind, R, p, size, o, src, a, b, cw, sr, margin, nrm, out, n
                         ):  # pragma: no cover - compiled
-    """Append spheres a..b-1 closer than margin to primitive o (source ``src``) to the contact
-    arrays ``out``; returns the new count."""
+    """Append spheres a..b-1 closer than margin to primitive o (kind, R, p, size: that
+    primitive's; source ``src``) to the contact arrays ``out``; returns the new count."""
     s_out, o_out, k_out, d_out, n_out = out
     for s in range(a, b):
         d = signed_distance_normal(kind, R, p, size, cw[s], nrm) - sr[s]
@@ -244,28 +225,26 @@ def _primitive_contacts(kind, R, p, size, o, src, a, b, cw, sr, margin, nrm, out
 
 
 @njit(cache=True)
-def sphere_contacts(q, margin, chain, spheres, groups, env, fixed, fixed_pairs, self_pairs
-                    ):  # pragma: no cover - compiled
+def sphere_contacts(q, margin, world):  # pragma: no cover - compiled
     """Every sphere within ``margin`` of an obstacle or of another sphere, at q.
 
-    Returns (sphere (C,), other (C,), kind (C,), distance (C,), normal (C, 3), point (C, 3)):
-    ``kind`` 0 environment obstacle index, 1 fixed robot part index, 2 another sphere index;
-    ``distance`` the signed distance between the two surfaces (m); ``normal`` the unit world
-    direction that increases it when the sphere moves along it; ``point`` the sphere's witness
-    point on its surface (world).
+    Returns (sphere (C,), other (C,), source (C,), distance (C,), normal (C, 3), point (C, 3)):
+    ``source`` ``codes.OBSTACLE`` (other: index into ``world.obstacles``), ``FIXED`` (a fixed
+    robot part) or ``SELF`` (another sphere); ``distance`` the signed distance between the two
+    surfaces (m); ``normal`` the unit world direction that increases it when the sphere moves
+    along it; ``point`` the sphere's witness point on its surface (world).
     """
     K = q.shape[0]
     Rb = np.empty((K, 3, 3))
     pb = np.empty((K, 3))
-    sc, sr, sj = spheres
-    gstart, gc, gr, gj = groups
-    ek, eR, ep, es = env
-    fk, fR, fp, fs = fixed
-    S = sc.shape[0]
+    sph, gstart, env, fixed = world.spheres, world.groups.start, world.obstacles, world.fixed.prims
+    fixed_pairs, self_pairs = world.fixed.pairs, world.groups.self_pairs
+    sr = sph.radius
+    S = sr.shape[0]
     cw = np.empty((S, 3))
-    chain_fk(q, chain[0], chain[1], chain[2], chain[3], Rb, pb)
-    transform_points(Rb, pb, sj, sc, cw)
-    cap = S * ek.shape[0] + S * fixed_pairs.shape[0] + S * S
+    chain_fk(q, world.chain, Rb, pb)
+    transform_points(Rb, pb, sph.joint, sph.centre, cw)
+    cap = S * env.kind.shape[0] + S * fixed_pairs.shape[0] + S * S
     s_out = np.empty(cap, dtype=np.int64)
     o_out = np.empty(cap, dtype=np.int64)
     k_out = np.empty(cap, dtype=np.int64)
@@ -274,14 +253,16 @@ def sphere_contacts(q, margin, chain, spheres, groups, env, fixed, fixed_pairs, 
     nrm = np.empty(3)
     n = 0
     out = (s_out, o_out, k_out, d_out, n_out)
+    ek, eR, ep, es = env.kind, env.R, env.p, env.size
+    fk, fR, fp, fs = fixed.kind, fixed.R, fixed.p, fixed.size
     for o in range(ek.shape[0]):
-        n = _primitive_contacts(ek[o], eR[o], ep[o], es[o], o, 0, 0, S, cw, sr, margin, nrm,
-                                out, n)
+        n = _primitive_contacts(ek[o], eR[o], ep[o], es[o], o, OBSTACLE, 0, S, cw, sr, margin,
+                                nrm, out, n)
     for i in range(fixed_pairs.shape[0]):
         g = fixed_pairs[i, 0]
         o = fixed_pairs[i, 1]
-        n = _primitive_contacts(fk[o], fR[o], fp[o], fs[o], o, 1, gstart[g], gstart[g + 1], cw,
-                                sr, margin, nrm, out, n)
+        n = _primitive_contacts(fk[o], fR[o], fp[o], fs[o], o, FIXED, gstart[g], gstart[g + 1],
+                                cw, sr, margin, nrm, out, n)
     for i in range(self_pairs.shape[0]):
         a = self_pairs[i, 0]
         b = self_pairs[i, 1]
@@ -296,7 +277,7 @@ def sphere_contacts(q, margin, chain, spheres, groups, env, fixed, fixed_pairs, 
                     else:
                         nrm[:] = 0.0
                         nrm[2] = 1.0
-                    s_out[n], o_out[n], k_out[n], d_out[n] = s, t, 2, d
+                    s_out[n], o_out[n], k_out[n], d_out[n] = s, t, SELF, d
                     n_out[n] = nrm
                     n += 1
     points = np.empty((n, 3))

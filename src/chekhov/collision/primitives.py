@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import coal
 import numpy as np
@@ -12,8 +14,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull, QhullError
 
-from chekhov.collision.gjk import HULL
-from chekhov.collision.kernels import BOX, CYLINDER, SPHERE
+from chekhov.collision.codes import BOX, CYLINDER, HULL, SPHERE
 from chekhov.errors import RobotError
 from chekhov.robot.spheres import mesh_arrays, mesh_triangles
 from chekhov.scene.model import Shape
@@ -23,7 +24,8 @@ Array = NDArray[np.float64]
 
 @dataclass(frozen=True)
 class Primitive:
-    """One convex primitive in the world: ``kind`` (sphere 0, box 1, cylinder 2), pose T (4, 4),
+    """One convex primitive in the world: ``kind`` (``codes.SPHERE``, ``BOX``, ``CYLINDER``), pose
+    T (4, 4),
     ``size`` (3,) as the kernels read it (radius; half extents; radius and half length).
     ``points`` (n, 3), in the primitive's frame (m): when the primitive stands for part of a
     mesh (a box around a triangle cluster), the support points of that part's convex hull,
@@ -151,14 +153,29 @@ def hull_parts(geometry: coal.CollisionGeometry) -> list[Array]:
     return [support_points(verts[label == c]) for c in np.unique(label[tris[:, 0]])]
 
 
-def pack(prims: list[Primitive]) -> tuple[NDArray[np.int64], Array, Array, Array]:
-    """Arrays (kind (M,), R (M, 3, 3), p (M, 3), size (M, 3)) as the kernels read them."""
+class Primitives(NamedTuple):
+    """Convex primitives in the world (M of them), as the kernels read them: kind (M,)
+    (``codes``), R (M, 3, 3), p (M, 3), size (M, 3) (see ``kernels.signed_distance``),
+    bound (M,) m: radius of a sphere about p containing the primitive."""
+
+    kind: NDArray[np.int64]
+    R: Array
+    p: Array
+    size: Array
+    bound: Array
+
+
+def pack_primitives(prims: Iterable[Primitive]) -> Primitives:
+    """The arrays of :class:`Primitives` for a list of primitives."""
+    prims = list(prims)
     M = len(prims)
     kind = np.array([p.kind for p in prims], dtype=np.int64).reshape(M)
-    R = np.array([p.T[:3, :3] for p in prims], dtype=float).reshape(M, 3, 3)
-    pos = np.array([p.T[:3, 3] for p in prims], dtype=float).reshape(M, 3)
     size = np.array([p.size for p in prims], dtype=float).reshape(M, 3)
-    return kind, R, pos, size
+    return Primitives(
+        kind=kind,
+        R=np.array([p.T[:3, :3] for p in prims], dtype=float).reshape(M, 3, 3),
+        p=np.array([p.T[:3, 3] for p in prims], dtype=float).reshape(M, 3),
+        size=size, bound=bounding_radius(kind, size))
 
 
 def bounding_radius(kind: NDArray[np.int64], size: Array) -> Array:
@@ -171,18 +188,18 @@ def bounding_radius(kind: NDArray[np.int64], size: Array) -> Array:
     return r
 
 
-def cluster_primitives(fixed: tuple, fixed_pairs: NDArray[np.int64], n_groups: int,
-                       clusters: int = 16) -> tuple:
+def cluster_primitives(fixed: Primitives, fixed_pairs: NDArray[np.int64], n_groups: int,
+                       clusters: int = 16, seed: int = 0) -> tuple:
     """Fixed robot parts grouped into spatial clusters with bounding spheres, so that a group
     far from the torso skips all of its primitives with a few tests: (allowed (G, F) bool —
     the group is checked against the primitive —, centre (L, 3), radius (L,), start (L+1,),
-    members (F,))."""
-    kind, _, pos, size = fixed
+    members (F,)). seed: of the k-means that forms the clusters."""
+    kind, pos, size = fixed.kind, fixed.p, fixed.size
     F = len(kind)
     allowed = np.zeros((n_groups, max(F, 1)), dtype=np.bool_)
     allowed[fixed_pairs[:, 0], fixed_pairs[:, 1]] = True
     L = min(clusters, F)
-    label = (kmeans2(pos, L, seed=0, minit="++")[1] if L > 0
+    label = (kmeans2(pos, L, seed=seed, minit="++")[1] if L > 0
              else np.zeros(0, dtype=np.int64))
     members = np.argsort(label, kind="stable").astype(np.int64)
     start = np.searchsorted(label[members], np.arange(L + 1)).astype(np.int64)

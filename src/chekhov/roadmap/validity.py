@@ -11,11 +11,11 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from chekhov.collision.codes import INVALID, UNKNOWN, VALID
 from chekhov.collision.fast import FastChecker
 from chekhov.roadmap.graph import Roadmap
 
 IntArray = NDArray[np.int64]
-UNKNOWN, INVALID, VALID = -1, 0, 1
 
 
 class RoadmapValidity:

@@ -12,6 +12,7 @@ the tests.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -23,21 +24,49 @@ from chekhov.robot.robot import Robot
 Array = NDArray[np.float64]
 
 
-@dataclass(frozen=True, eq=False)
-class ChainKinematics:
-    """A serial revolute chain in the world frame, as flat arrays for the kernels.
+class KinematicChain(NamedTuple):
+    """A tree of revolute joints in the world frame, as the compiled kernels read it (numba
+    takes a ``NamedTuple`` of arrays as a tuple with named fields).
 
     Attributes:
+        parent: (K,) int64, index of each joint's parent joint, -1 for a joint on the world
+            (a serial chain: -1, 0, 1, …, K-2).
         R_parent_joint, p_parent_joint: (K, 3, 3), (K, 3) placement of each joint in its
-            parent joint's frame (the first in the world), m.
+            parent joint's frame (in the world for a root joint), m.
         axis: (K, 3) rotation axis of each joint in its own frame (unit).
+    """
+
+    parent: NDArray[np.int64]
+    R_parent_joint: Array
+    p_parent_joint: Array
+    axis: Array
+
+
+def kinematic_chain(robot: Robot) -> KinematicChain:
+    """The robot's planning group (any tree of revolute joints) for :func:`chain_fk`; raises
+    :class:`RobotError` for a joint that is not revolute."""
+    m = robot.model
+    K = robot.dof
+    return KinematicChain(
+        parent=np.array([m.parents[k] - 1 for k in range(1, K + 1)], dtype=np.int64),
+        R_parent_joint=np.array([m.jointPlacements[k].rotation for k in range(1, K + 1)],
+                                dtype=float).reshape(K, 3, 3),
+        p_parent_joint=np.array([m.jointPlacements[k].translation for k in range(1, K + 1)],
+                                dtype=float).reshape(K, 3),
+        axis=robot.compute_joint_axes())
+
+
+@dataclass(frozen=True, eq=False)
+class ChainKinematics:
+    """A serial revolute chain in the world frame with its end effector, for the kernels.
+
+    Attributes:
+        chain: the joints (:class:`KinematicChain`, parent k - 1 for joint k).
         R_last_ee, p_last_ee: (3, 3), (3,) end-effector frame in the last joint's frame.
         lower, upper: (K,) joint limits, rad.
     """
 
-    R_parent_joint: Array
-    p_parent_joint: Array
-    axis: Array
+    chain: KinematicChain
     R_last_ee: Array
     p_last_ee: Array
     lower: Array
@@ -58,23 +87,17 @@ class ChainKinematics:
             raise RobotError(f"robot '{robot.name}': end-effector frame is on joint "
                              f"{frame.parentJoint}, expected the last joint {K}")
         return cls(
-            R_parent_joint=np.array([m.jointPlacements[k].rotation for k in range(1, K + 1)]),
-            p_parent_joint=np.array([m.jointPlacements[k].translation for k in range(1, K + 1)]),
-            axis=robot.compute_joint_axes(),
+            chain=kinematic_chain(robot),
             R_last_ee=np.array(frame.placement.rotation), p_last_ee=np.array(
                 frame.placement.translation),
             lower=robot.lower.astype(float).copy(), upper=robot.upper.astype(float).copy())
-
-    def _args(self) -> tuple:
-        return (self.R_parent_joint, self.p_parent_joint, self.axis, self.R_last_ee,
-                self.p_last_ee)
 
     def ee_poses(self, Q: Array) -> tuple[Array, Array]:
         """End-effector rotation (N, 3, 3) and position (N, 3), world, for each row of Q."""
         Q = np.ascontiguousarray(np.atleast_2d(np.asarray(Q, dtype=float)))
         R = np.empty((len(Q), 3, 3))
         p = np.empty((len(Q), 3))
-        ee_batch(*(Q, *self._args(), R, p))
+        ee_batch(Q, self.chain, self.R_last_ee, self.p_last_ee, R, p)
         return R, p
 
     def solve(self, T_world_ee: Array, Q_seed: Array, max_iterations: int = 60,
@@ -89,20 +112,20 @@ class ChainKinematics:
         T = np.asarray(T_world_ee, dtype=float)
         out = np.empty_like(Q0)
         ok = np.empty(len(Q0), dtype=np.bool_)
-        ik_batch(*(np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3]), Q0,
-                   *self._args(), self.lower, self.upper, max_iterations, position_tolerance,
-                   rotation_tolerance, damping,
-                   len(Q0) if stop_after is None else int(stop_after), out, ok))
+        ik_batch(np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3]), Q0,
+                 self.chain, self.R_last_ee, self.p_last_ee, self.lower, self.upper,
+                 max_iterations, position_tolerance, rotation_tolerance, damping,
+                 len(Q0) if stop_after is None else int(stop_after), out, ok)
         return out, ok
 
 
 @njit(cache=True, inline="always")
-def _axis_rotation(a, angle, out):  # pragma: no cover - compiled
-    """Rodrigues: rotation by ``angle`` (rad) about unit axis a, written into out (3, 3)."""
+def _axis_rotation(x, y, z, angle, out):  # pragma: no cover - compiled
+    """Rodrigues: rotation by ``angle`` (rad) about the unit axis (x, y, z), written into out
+    (3, 3)."""
     c = np.cos(angle)
     s = np.sin(angle)
     t = 1.0 - c
-    x, y, z = a[0], a[1], a[2]
     out[0, 0] = t * x * x + c
     out[0, 1] = t * x * y - s * z
     out[0, 2] = t * x * z + s * y
@@ -123,29 +146,50 @@ def _mul3(A, B, out):  # pragma: no cover - compiled
 
 
 @njit(cache=True, inline="always")
-def chain_fk(q, R0, p0, axis, Rj, pj):  # pragma: no cover - compiled
-    """World rotation Rj (K, 3, 3) and origin pj (K, 3) of each joint at q (serial chain)."""
+def chain_fk_arrays(q, parent, R0, p0, axis, R_out, p_out):  # pragma: no cover - compiled
+    """World rotation R_out (K, 3, 3) and origin p_out (K, 3) of each joint at q, the chain
+    given by its arrays (those of :class:`KinematicChain`: parent, R_parent_joint,
+    p_parent_joint, axis): T_k = T_parent(k) · placement_k · Rot(axis_k, q_k). The one forward
+    kinematics of the compiled code (IK here, the collision kernels, the distance terms);
+    parents come before their children. Hot kernels take the arrays out of the chain once and
+    call this; others call :func:`chain_fk`."""
     Rq = np.empty((3, 3))
-    T1 = np.empty((3, 3))
-    R = np.eye(3)
-    p = np.zeros(3)
+    A = np.empty((3, 3))
     for k in range(q.shape[0]):
-        for i in range(3):
-            p[i] += R[i, 0] * p0[k, 0] + R[i, 1] * p0[k, 1] + R[i, 2] * p0[k, 2]
-        _mul3(R, R0[k], T1)
-        _axis_rotation(axis[k], q[k], Rq)
-        _mul3(T1, Rq, Rj[k])
-        R = Rj[k]
-        pj[k] = p
+        _axis_rotation(axis[k, 0], axis[k, 1], axis[k, 2], q[k], Rq)
+        pk = parent[k]
+        if pk < 0:
+            for a in range(3):
+                p_out[k, a] = p0[k, a]
+                for b in range(3):
+                    A[a, b] = R0[k, a, b]
+        else:
+            for a in range(3):
+                p_out[k, a] = (R_out[pk, a, 0] * p0[k, 0] + R_out[pk, a, 1] * p0[k, 1]
+                               + R_out[pk, a, 2] * p0[k, 2] + p_out[pk, a])
+                for b in range(3):
+                    A[a, b] = (R_out[pk, a, 0] * R0[k, 0, b] + R_out[pk, a, 1] * R0[k, 1, b]
+                               + R_out[pk, a, 2] * R0[k, 2, b])
+        for a in range(3):
+            for b in range(3):
+                R_out[k, a, b] = A[a, 0] * Rq[0, b] + A[a, 1] * Rq[1, b] + A[a, 2] * Rq[2, b]
+
+
+@njit(cache=True, inline="always")
+def chain_fk(q, chain, R_out, p_out):  # pragma: no cover - compiled
+    """:func:`chain_fk_arrays` of ``chain`` (a :class:`KinematicChain`) at q."""
+    chain_fk_arrays(q, chain.parent, chain.R_parent_joint, chain.p_parent_joint, chain.axis,
+                    R_out, p_out)
 
 
 @njit(cache=True)
-def ee_batch(Q, R0, p0, axis, Rf, pf, R_out, p_out):  # pragma: no cover - compiled
+def ee_batch(Q, chain, Rf, pf, R_out, p_out):  # pragma: no cover - compiled
     K = Q.shape[1]
     Rj = np.empty((K, 3, 3))
     pj = np.empty((K, 3))
+    parent, R0, p0, axis = chain.parent, chain.R_parent_joint, chain.p_parent_joint, chain.axis
     for i in range(Q.shape[0]):
-        chain_fk(Q[i], R0, p0, axis, Rj, pj)
+        chain_fk_arrays(Q[i], parent, R0, p0, axis, Rj, pj)
         R_out[i] = Rj[K - 1] @ Rf
         p_out[i] = pj[K - 1] + Rj[K - 1] @ pf
 
@@ -203,11 +247,12 @@ def _solve_spd6(A, b, x):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def ik_descend(R_t, p_t, q0, R0, p0, axis, Rf, pf, lower, upper, max_iterations, pos_tol,
+def ik_descend(R_t, p_t, q0, chain, Rf, pf, lower, upper, max_iterations, pos_tol,
                rot_tol, damping, q_out):  # pragma: no cover - compiled
     """Damped least squares from q0 towards the target pose (R_t, p_t); writes q_out and
     returns (position error m, rotation error rad)."""
     K = q0.shape[0]
+    parent, R0, p0, axis = chain.parent, chain.R_parent_joint, chain.p_parent_joint, chain.axis
     Rj = np.empty((K, 3, 3))
     pj = np.empty((K, 3))
     J = np.empty((6, K))
@@ -223,7 +268,7 @@ def ik_descend(R_t, p_t, q0, R0, p0, axis, Rf, pf, lower, upper, max_iterations,
     pos_err = np.inf
     rot_err = np.inf
     for it in range(max_iterations + 1):
-        chain_fk(q, R0, p0, axis, Rj, pj)
+        chain_fk_arrays(q, parent, R0, p0, axis, Rj, pj)
         RK = Rj[K - 1]
         _mul3(RK, Rf, R_e)
         for i in range(3):
@@ -273,7 +318,7 @@ def ik_descend(R_t, p_t, q0, R0, p0, axis, Rf, pf, lower, upper, max_iterations,
 
 
 @njit(cache=True)
-def ik_batch(R_t, p_t, Q0, R0, p0, axis, Rf, pf, lower, upper, max_iterations, pos_tol,
+def ik_batch(R_t, p_t, Q0, chain, Rf, pf, lower, upper, max_iterations, pos_tol,
              rot_tol, damping, stop_after, Q_out, ok):  # pragma: no cover - compiled
     """IK from each seed row of Q0; after ``stop_after`` converged seeds the rest are skipped
     (ok False)."""
@@ -283,7 +328,7 @@ def ik_batch(R_t, p_t, Q0, R0, p0, axis, Rf, pf, lower, upper, max_iterations, p
         if found >= stop_after:
             Q_out[i] = Q0[i]
             continue
-        pe, re = ik_descend(R_t, p_t, Q0[i], R0, p0, axis, Rf, pf, lower, upper,
+        pe, re = ik_descend(R_t, p_t, Q0[i], chain, Rf, pf, lower, upper,
                             max_iterations, pos_tol, rot_tol, damping, Q_out[i])
         ok[i] = pe <= pos_tol and re <= rot_tol
         if ok[i]:

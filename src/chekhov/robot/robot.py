@@ -20,6 +20,18 @@ Array = NDArray[np.float64]
 _AXES = {"RX": (1.0, 0.0, 0.0), "RY": (0.0, 1.0, 0.0), "RZ": (0.0, 0.0, 1.0)}
 
 
+def joint_axis(joint: pin.JointModel) -> Array | None:
+    """Unit rotation axis of a revolute joint in its own frame; None for any other joint (the
+    one table of joint axes: the compiled kinematics and the exact checker's motion bounds)."""
+    name = joint.shortname()
+    if name.startswith("JointModelR") and name[-2:] in _AXES:
+        return np.array(_AXES[name[-2:]], dtype=float)
+    if name == "JointModelRevoluteUnaligned":
+        ax = np.array(joint.extract().axis, dtype=float)
+        return ax / np.linalg.norm(ax)
+    return None
+
+
 class Robot:
     """A robot reduced to its planning group (K joints), every frame expressed in the world.
 
@@ -41,6 +53,9 @@ class Robot:
         if not urdf.is_file():
             raise RobotError(f"robot '{description.name}': URDF not found at {urdf}")
         self._urdf = urdf
+        self.caches: dict[str, object] = {}
+        """Data derived from this robot alone, kept by the layers above (the fast checker's
+        fixed-part distance grids: ``collision.packed.GridCache``)."""
         self._package_dirs = [*description.package_dirs, *_default_package_dirs()]
         try:
             full = pin.buildModelFromUrdf(str(urdf))
@@ -218,15 +233,12 @@ class Robot:
         m = self.model
         axes = []
         for k in range(1, self.dof + 1):
-            j = m.joints[k]
-            name = j.shortname()
-            if name.startswith("JointModelR") and name[-2:] in _AXES:
-                axes.append(_AXES[name[-2:]])
-            elif name == "JointModelRevoluteUnaligned":
-                axes.append(tuple(j.extract().axis))
-            else:
-                raise RobotError(f"robot '{self.name}': joint '{m.names[k]}' is {name}; only "
-                                 "revolute joints are supported by the compiled kinematics")
+            axis = joint_axis(m.joints[k])
+            if axis is None:
+                raise RobotError(f"robot '{self.name}': joint '{m.names[k]}' is "
+                                 f"{m.joints[k].shortname()}; only revolute joints are "
+                                 "supported by the compiled kinematics")
+            axes.append(axis)
         return np.array(axes, dtype=float)
 
     def _frame_id(self, frame: str | int | None) -> int:
