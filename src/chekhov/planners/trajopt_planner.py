@@ -35,6 +35,7 @@ class TrajOptPlanner(PlannerBase):
         self.config = config if config is not None else TrajOptConfig()
         self.name = name
         self._distances = TrajectoryDistances(world.fast)
+        world.goal_ik.warmup()   # its IK kernel compiles now, not in the first timed query
 
     def goal_configuration(self, q_start: Array, goal: Goal, n_solutions: int = 6,
                            deadline: float = math.inf) -> Array:
