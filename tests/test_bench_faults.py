@@ -167,8 +167,8 @@ def test_two_processes_on_one_database_split_the_runs(cache):
 
 
 def bad_goal_cases(real):
-    def load(world, cfg):
-        cases, source = real(world, cfg)
+    def load(world, cfg, *family):
+        cases, source = real(world, cfg, *family)
         T = cases.T_world_ee_goal.copy()
         T[1, 0, 3] = np.nan
         from dataclasses import replace

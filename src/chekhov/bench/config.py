@@ -25,8 +25,12 @@ class BenchConfig:
         time_limit_s: s, limit of every ``plan`` call (the paper: 300 s; RRT* and PRM* run to
             it). Stated in every report.
         case_seed: seed of the generated cases.
-        case_files: scene name → case file (``chekhov cases generate``, e.g. after the
-            solvability pass); scenes not listed use generated cases.
+        case_files: (scene name, case file) pairs (``chekhov cases generate``, e.g. after the
+            solvability pass), at most one per scene and case family (the file's own);
+            scenes and families without one use generated cases.
+        families: case families to run, each scene on each ("random": the paper's uniform
+            cases, the default; "tasks": pre-grasp to pre-grasp or place; see
+            :mod:`chekhov.cases`). Each (scene, family) is its own experiment.
         resolution: rad, joint-space step of every motion check (OMPL planners, LazyPRM).
         roadmap_config: roadmap of Roadmap+TrajOpt (default ``RoadmapConfig()``), loaded from or
             built into ``roadmap_dir`` (default: the roadmap cache).
@@ -63,9 +67,16 @@ class BenchConfig:
     warm_up: bool = True
     share_seed_runs: bool = True
     db_lock_timeout_s: float = 120.0
+    families: tuple[str, ...] = ("random",)
 
     def __post_init__(self) -> None:
         from chekhov.bench.registry import PLANNER_NAMES, canonical_planner_name
+        from chekhov.cases import FAMILIES
+
+        if not self.families or len(set(self.families)) != len(self.families) \
+                or not set(self.families) <= set(FAMILIES):
+            raise ChekhovError(f"bench: families must be distinct names of {list(FAMILIES)}, "
+                               f"got {list(self.families)}")
 
         if not self.scenes:
             raise ChekhovError("bench: no scenes given")
@@ -108,6 +119,6 @@ class BenchConfig:
         """Worker processes of the local executor (default: the CPU count)."""
         return self.workers if self.workers is not None else max(1, os.cpu_count() or 1)
 
-    def case_file(self, scene: str) -> str | None:
-        """The case file given for ``scene``, if any."""
-        return dict(self.case_files).get(scene)
+    def case_files_of(self, scene: str) -> list[str]:
+        """The case files given for ``scene`` (one per family at most)."""
+        return [path for s, path in self.case_files if s == scene]

@@ -3,9 +3,11 @@
 OMPL's tables, as ``ompl_benchmark_statistics.py`` creates them (Planner Arena reads these):
 
 * ``experiments`` (id, name, totaltime, timelimit, memorylimit, runcount, version, hostname,
-  cpuinfo, date, seed, setup) — one per scene, case source and time limit; ``name`` is the
-  scene. Extra columns (as OMPL's experiment properties): ``scene_hash``, ``case_seed``,
-  ``case_source``, ``exact_substeps``, ``resolution``.
+  cpuinfo, date, seed, setup) — one per scene, case family, case source and time limit;
+  ``name`` is the scene. Extra columns (as OMPL's experiment properties): ``scene_hash``,
+  ``case_seed``, ``case_source``, ``exact_substeps``, ``resolution``, ``family`` (the case
+  family, "random" or "tasks"; added as "random" to the experiments of a version-1 database
+  when it is opened, which is what they all hold, so such a database resumes as before).
 * ``plannerConfigs`` (id, name, settings) — ``settings`` is the planner's configuration as JSON.
 * ``enums`` (name, value, description) — ``status`` (OMPL's PlannerStatus strings) and
   ``failure_kind`` (ours, values added as they occur).
@@ -61,7 +63,7 @@ from chekhov.errors import BenchError
 T = TypeVar("T")
 
 DB_FORMAT = "chekhov-bench"
-DB_VERSION = 1
+DB_VERSION = 2   # 2: experiments.family
 
 # ompl::base::PlannerStatus, in order (the strings OMPL's Benchmark writes to its logs).
 OMPL_STATUS = ("Unknown status", "Invalid start", "Invalid goal", "Unrecognized goal type",
@@ -83,7 +85,7 @@ CREATE TABLE IF NOT EXISTS experiments
     version VARCHAR(128), hostname VARCHAR(1024), cpuinfo TEXT,
     date DATETIME, seed VARCHAR(24), setup TEXT,
     scene_hash VARCHAR(64), case_seed INTEGER, case_source TEXT, exact_substeps INTEGER,
-    resolution REAL);
+    resolution REAL, family TEXT NOT NULL DEFAULT 'random');
 CREATE TABLE IF NOT EXISTS plannerConfigs
     (id INTEGER PRIMARY KEY AUTOINCREMENT,
     name VARCHAR(512) NOT NULL, settings TEXT);
@@ -235,9 +237,15 @@ class BenchDatabase:
         for statement in _SCHEMA.split(";"):
             if statement.strip():
                 c.execute(statement)
+        columns = {r[1] for r in c.execute("PRAGMA table_info(experiments)").fetchall()}
+        if "family" not in columns:   # a version-1 database: every experiment is random
+            c.execute("ALTER TABLE experiments ADD COLUMN family TEXT NOT NULL "
+                      "DEFAULT 'random'")
         c.executemany("INSERT OR IGNORE INTO chekhov_meta VALUES (?, ?)",
-                      [("format", DB_FORMAT), ("version", str(DB_VERSION)),
+                      [("format", DB_FORMAT),
                        ("units", "time s, lengths rad, paths float32 rad (T, dof)")])
+        c.execute("INSERT OR REPLACE INTO chekhov_meta VALUES ('version', ?)",
+                  (str(DB_VERSION),))
         c.executemany("INSERT OR IGNORE INTO enums VALUES (?, ?, ?)",
                       [("status", i, s) for i, s in enumerate(OMPL_STATUS)]
                       + [("failure_kind", 0, "none")])
@@ -263,31 +271,32 @@ class BenchDatabase:
     def experiment_id(self, scene: str, scene_hash: str, case_seed: int, case_source: str,
                       time_limit_s: float, exact_substeps: int, resolution: float,
                       setup: str = "", version: str = "", hostname: str = "",
-                      cpuinfo: str = "") -> int:
-        """The experiment of these settings (created when new; looked up and created in one
-        transaction, so runners starting together share it)."""
+                      cpuinfo: str = "", family: str = "random") -> int:
+        """The experiment of these settings and case family (created when new; looked up and
+        created in one transaction, so runners starting together share it)."""
         key = (scene, scene_hash, case_seed, case_source, time_limit_s, exact_substeps,
-               resolution)
+               resolution, family)
 
         def get(c: sqlite3.Connection) -> int:
             row = c.execute(
                 "SELECT id FROM experiments WHERE name=? AND scene_hash=? AND case_seed=? AND "
-                "case_source=? AND timelimit=? AND exact_substeps=? AND resolution=? "
-                "ORDER BY id", key).fetchone()
+                "case_source=? AND timelimit=? AND exact_substeps=? AND resolution=? AND "
+                "family=? ORDER BY id", key).fetchone()
             if row is not None:
                 return int(row[0])
             cur = c.execute(
                 "INSERT INTO experiments (name, totaltime, timelimit, memorylimit, runcount, "
                 "version, hostname, cpuinfo, date, seed, setup, scene_hash, case_seed, "
-                "case_source, exact_substeps, resolution) VALUES "
-                "(?, 0, ?, 0, 0, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                "case_source, exact_substeps, resolution, family) VALUES "
+                "(?, 0, ?, 0, 0, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
                 (scene, time_limit_s, version, hostname, cpuinfo,
                  time.strftime("%Y-%m-%d %H:%M:%S"), str(case_seed), setup, scene_hash,
-                 case_seed, case_source, exact_substeps, resolution))
+                 case_seed, case_source, exact_substeps, resolution, family))
             assert cur.lastrowid is not None
             return int(cur.lastrowid)
 
-        return self.write(f"recording the experiment of scene '{scene}'", get)
+        return self.write(f"recording the experiment of scene '{scene}' ({family} cases)",
+                          get)
 
     def planner_id(self, name: str, settings: str) -> int:
         """The plannerConfigs row of (name, settings) (created when new), as OMPL does."""
@@ -393,7 +402,8 @@ class BenchDatabase:
     def rows(self, experiment_ids: list[int] | None = None, planners: list[str] | None = None,
              max_case: int | None = None, paths: bool = False) -> list[dict[str, Any]]:
         """Runs joined with their experiment, planner and side-table fields, one dict each
-        (``scene``, ``planner``, ``timelimit``, every ``runs`` column, ``status_text``,
+        (``scene``, ``family``, ``planner``, ``timelimit``, every ``runs`` column,
+        ``status_text``,
         ``failure_kind_text``, ``trajopt_status``, ``timing`` (dict, s), ``info`` (dict);
         with ``paths``, ``path`` / ``seed_path`` as (T, dof) float arrays or None)."""
         where: list[str] = []
@@ -408,7 +418,8 @@ class BenchDatabase:
             where.append("r.case_index < ?")
             args.append(max_case)
         extra = ", k.path AS path_blob, k.seed_path AS seed_blob, k.dof AS dof" if paths else ""
-        sql = ("SELECT r.*, e.name AS scene, e.timelimit AS timelimit, p.name AS planner, "
+        sql = ("SELECT r.*, e.name AS scene, e.family AS family, e.timelimit AS timelimit, "
+               "p.name AS planner, "
                "k.status AS status_text, k.failure_kind AS failure_kind_text, "
                "k.trajopt_status AS trajopt_status, k.timing_json AS timing_json, "
                "k.info_json AS info_json, k.case_hash AS case_hash" + extra + " FROM runs r "
@@ -432,8 +443,8 @@ class BenchDatabase:
     def export_csv(self, path: str | Path) -> Path:
         """All runs as CSV (one row each, no paths; ``timing`` as JSON), written atomically."""
         rows = self.rows()
-        cols = ["scene", "timelimit", "planner", "case_index", "case_hash", "success", "solved",
-                "status_text", "failure_kind_text", "time", "solution_length",
+        cols = ["scene", "family", "timelimit", "planner", "case_index", "case_hash", "success",
+                "solved", "status_text", "failure_kind_text", "time", "solution_length",
                 "correct_solution", "exact_collision", "waypoints", "seed_found",
                 "seed_time", "seed_length", "trajopt_time", "trajopt_status", "trajopt_ok",
                 "fallback_to_seed", "exact_check_time", "timing"]

@@ -1,7 +1,8 @@
 """PNG plots of a benchmark database (matplotlib, Agg backend), written atomically.
 
-* ``runtime_distribution.png``: per scene, a box plot of every planner's runtimes (log scale).
-* ``failure_rate.png``, ``path_length.png``: per scene, bars per planner.
+* ``runtime_distribution.png``: per scene and case family, a box plot of every planner's
+  runtimes (log scale).
+* ``failure_rate.png``, ``path_length.png``: per scene and case family, bars per planner.
 * ``figure3.png``: like the paper's Figure 3, the four proximal joints along three
   Roadmap+TrajOpt plans: the roadmap seed solid, the optimised trajectory dashed, against the
   normalised joint-space arc length.
@@ -17,9 +18,7 @@ from typing import IO, Any
 import numpy as np
 
 from chekhov.bench.files import write_file
-from chekhov.bench.summary import ROADMAP, PlannerStats
-
-Stats = dict[tuple[str, float], dict[str, PlannerStats]]
+from chekhov.bench.summary import ROADMAP, Stats, StatsKey, stats_label
 
 
 def _plt() -> Any:
@@ -38,9 +37,8 @@ def _save(fig: Any, path: Path) -> Path:
     return path
 
 
-def _label(scene: str, limit: float, stats: Stats) -> str:
-    multi = sum(1 for s, _ in stats if s == scene) > 1
-    return f"{scene} ({limit:g} s)" if multi else scene
+def _label(key: StatsKey, stats: Stats) -> str:
+    return stats_label(key, stats)
 
 
 def planner_order(names: Sequence[str]) -> list[str]:
@@ -57,10 +55,13 @@ def runtime_distribution(rows: list[dict[str, Any]], stats: Stats, path: Path) -
     keys = sorted(stats)
     fig, axes = plt.subplots(len(keys), 1, figsize=(9, 2.2 + 0.35 * _max_planners(stats)
                                                     * len(keys)), squeeze=False)
-    for ax, (scene, limit) in zip(axes[:, 0], keys, strict=True):
-        names = planner_order(list(stats[(scene, limit)]))
+    for ax, key in zip(axes[:, 0], keys, strict=True):
+        scene, limit, family = key
+        names = planner_order(list(stats[key]))
         data = [[max(r["time"], 1e-4) for r in rows if r["scene"] == scene
-                 and float(r["timelimit"]) == limit and r["planner"] == n] for n in names]
+                 and float(r["timelimit"]) == limit
+                 and (r.get("family") or "random") == family and r["planner"] == n]
+                for n in names]
         style: dict[str, Any] = {"whis": (5, 95), "showfliers": True, "flierprops": {"ms": 2}}
         try:
             ax.boxplot(data, orientation="horizontal", **style)   # matplotlib >= 3.10
@@ -69,7 +70,7 @@ def runtime_distribution(rows: list[dict[str, Any]], stats: Stats, path: Path) -
         ax.set_yticks(range(1, len(names) + 1), names)
         ax.set_xscale("log")
         ax.axvline(limit, color="grey", ls=":", lw=1)
-        ax.set_title(f"{_label(scene, limit, stats)}: planning time per run "
+        ax.set_title(f"{_label(key, stats)}: planning time per run "
                      f"(whiskers 5–95%, dotted: limit {limit:g} s)", fontsize=9)
         ax.set_xlabel("runtime (s, log scale)")
         ax.invert_yaxis()
@@ -97,7 +98,7 @@ def _bars(stats: Stats, path: Path, value: str, ylabel: str, title: str,
             v = getattr(s, value) if s is not None else math.nan
             vals.append(100 * v if percent and math.isfinite(v) else v)
         ax.bar(x + (j - (len(names) - 1) / 2) * width, vals, width, label=n, color=cmap(j))
-    ax.set_xticks(x, [_label(s, lim, stats) for s, lim in keys])
+    ax.set_xticks(x, [_label(k, stats) for k in keys])
     ax.set_ylabel(ylabel)
     ax.set_title(title, fontsize=10)
     ax.legend(fontsize=7, ncol=2, loc="upper left", bbox_to_anchor=(1.0, 1.0))

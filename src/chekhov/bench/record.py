@@ -48,6 +48,7 @@ class RunRecord:
             planner's name (its planning time is counted once); None otherwise.
         info: scalar extras of ``PlanResult.info`` (iterations, counts, error text).
         worker: "host:pid" of the process that ran it.
+        family: the case family ("random" or "tasks").
     """
 
     scene: str
@@ -71,10 +72,11 @@ class RunRecord:
     info: dict[str, object] = field(default_factory=dict)
     worker: str = ""
     seed_stage_of: str | None = None
+    family: str = "random"
 
     @property
-    def key(self) -> tuple[str, str, int]:
-        return (self.scene, self.planner, self.case_index)
+    def key(self) -> tuple[str, str, str, int]:
+        return (self.scene, self.family, self.planner, self.case_index)
 
     @property
     def success(self) -> bool:

@@ -21,16 +21,18 @@ from chekhov.bench.files import write_text
 from chekhov.bench.summary import (
     ROADMAP,
     PlannerStats,
+    Stats,
+    StatsKey,
     compute_stats,
     format_table,
     length_ratios,
     runtime_ratios,
+    stats_label,
     summary_json,
     targets,
 )
 from chekhov.errors import ChekhovError
 
-Stats = dict[tuple[str, float], dict[str, PlannerStats]]
 SAMPLING = ("RRTConnect", "RRT", "LazyPRM", "RRT*", "PRM*")
 
 
@@ -88,15 +90,15 @@ def markdown(db_path: Path, stats: Stats, experiments: list[dict[str, Any]],
          "\n" + _table_i(stats), "\n" + _table_ii(stats), "\n" + _table_iii(stats),
          "\n" + _table_iv(stats), "\n## Plots\n", *(f"![{n}]({n})\n" for n in images),
          *_failure_kinds(stats), *_configurations(configs, rows)]
-    scenes = sorted({s for s, _ in stats})
+    scenes = sorted({k.scene for k in stats})
     planners = plots.planner_order(sorted({n for v in stats.values() for n in v}))
     L.append(f"Planners in this report: {', '.join(planners)}. Scenes: {', '.join(scenes)}.\n")
     return "\n".join(L) + "\n"
 
 
 def _introduction(db_path: Path, experiments: list[dict[str, Any]],
-                  cases: dict[tuple[str, float], int]) -> list[str]:
-    """Title, time limits, cases per scene (``cases``: by (scene, limit s)), the exact check."""
+                  cases: dict[StatsKey, int]) -> list[str]:
+    """Title, time limits, cases per scene and family (``cases``), the exact check."""
     limits = sorted({float(e["timelimit"]) for e in experiments})
     return [
         "# Chekhov benchmark report\n",
@@ -104,29 +106,37 @@ def _introduction(db_path: Path, experiments: list[dict[str, Any]],
         f"**Time limit per planning call: {', '.join(f'{x:g} s' for x in limits)}** "
         f"(the paper: {paper.PAPER_TIME_LIMIT_S:g} s). RRT* and PRM* optimise path length and "
         "run to the limit, as in the paper. Cases per scene: "
-        + ", ".join(f"{s} {n}" for (s, _), n in sorted(cases.items()))
+        + ", ".join(f"{stats_label(k, cases)} {n}" for k, n in sorted(cases.items()))
         + f" (the paper: {paper.PAPER_CASES}). Every returned path is re-checked by the runner "
         "with the exact checker (pinocchio + coal on the URDF geometry) at "
         f"{_substeps(experiments)} interpolated configurations per segment — the paper's "
-        "continuous-time check — independently of the planner.\n"]
+        "continuous-time check — independently of the planner. Case families: "
+        + ", ".join(sorted({k.family for k in cases})) + " (random: start and goal "
+        "configurations uniform within the joint limits; tasks: from a pre-grasp or ready "
+        "configuration to another object's pre-grasp pose or a place pose, issue 17); a "
+        "scene's families stand side by side in every table.\n"]
 
 
 def _how_produced(db_path: Path, stats: Stats, experiments: list[dict[str, Any]],
-                  cases: dict[tuple[str, float], int]) -> list[str]:
+                  cases: dict[StatsKey, int]) -> list[str]:
     """The commands that reproduce the database, its experiments, how times were measured."""
     L = ["## How it was produced\n", "```"]
-    files = {e["name"]: str(e["case_source"]).split()[1] for e in experiments
-             if str(e["case_source"]).startswith("file ")}
-    for (scene, limit), n in sorted(cases.items()):
-        ps = " ".join(f"'{p}'" for p in plots.planner_order(list(stats[(scene, limit)])))
-        cf = f" --case-file cases/{files[scene]}" if scene in files else ""
-        L.append(f"chekhov bench --scenes {scene} --planners {ps} --cases {n} "
+    files = {(e["name"], e.get("family") or "random"): str(e["case_source"]).split()[1]
+             for e in experiments if str(e["case_source"]).startswith("file ")}
+    for key, n in sorted(cases.items()):
+        scene, limit, family = key
+        ps = " ".join(f"'{p}'" for p in plots.planner_order(list(stats[key])))
+        cf = (f" --case-file cases/{files[(scene, family)]}" if (scene, family) in files
+              else "")
+        fam = "" if family == "random" else f" --family {family}"
+        L.append(f"chekhov bench --scenes {scene}{fam} --planners {ps} --cases {n} "
                  f"--time-limit {limit:g}{cf} --db {db_path.name}")
     L += [f"chekhov report {db_path.name} --out DIR", "```\n"]
     if files:
         L.append("Case files (`chekhov cases generate SCENE --n N --seed S`, with the paper's "
                  "solvability pass) are read from `cases/` beside this report.\n")
-    L += [f"* experiment {e['id']} `{e['name']}`: cases {e['case_source']}, limit "
+    L += [f"* experiment {e['id']} `{e['name']}` ({e.get('family') or 'random'} cases): "
+          f"cases {e['case_source']}, limit "
           f"{e['timelimit']:g} s, motion-check resolution {e['resolution']:g} rad, "
           f"{e['version']}, host {e['hostname']} ({e['cpuinfo']}), started {e['date']}, "
           f"{e['totaltime']:.0f} s of planning and checking in all." for e in experiments]
@@ -147,18 +157,18 @@ def _targets_section(stats: Stats) -> list[str]:
     L = ["\n### Roadmap+TrajOpt against the issue's targets\n",
          "| scene | " + " | ".join(n.replace("_", " ") for n in names) + " |",
          "|---|" + "---|" * len(names)]
-    L += [f"| {_scene(scene, limit, stats)} | "
+    L += [f"| {_scene(key, stats)} | "
           + " | ".join("yes" if g[n] else "**no**" for n in names) + " |"
-          for (scene, limit), g in sorted(goals.items())]
+          for key, g in sorted(goals.items())]
     return L
 
 
 def _failure_kinds(stats: Stats) -> list[str]:
     """Runs by outcome, per scene and planner."""
     L = ["## Failure kinds\n", "| scene | planner | runs by outcome |", "|---|---|---|"]
-    for (scene, limit), per in sorted(stats.items()):
+    for key, per in sorted(stats.items()):
         for pname in plots.planner_order(list(per)):
-            L.append(f"| {_scene(scene, limit, stats)} | {pname} | "
+            L.append(f"| {_scene(key, stats)} | {pname} | "
                      + ", ".join(f"{k} {v}" for k, v in per[pname].statuses.items()) + " |")
     return L
 
@@ -201,9 +211,8 @@ def _short(settings: str, limit: int = 600) -> str:
     return settings if len(settings) <= limit else settings[:limit] + " …"
 
 
-def _scene(scene: str, limit: float, stats: Stats) -> str:
-    multi = sum(1 for s, _ in stats if s == scene) > 1
-    return f"{scene} ({limit:g} s)" if multi else scene
+def _scene(key: StatsKey, stats: Stats) -> str:
+    return stats_label(key, stats)
 
 
 def _pc(x: float | None) -> str:
@@ -225,13 +234,13 @@ def _summary_table(stats: Stats) -> str:
          "rate (exact) | Roadmap+TrajOpt runtime ratio mean / median | Roadmap+TrajOpt "
          "length ratio, common cases |",
          "|---|---|---|---|---|---|---|---|---|---|---|"]
-    for (scene, limit), per in sorted(stats.items()):
+    for key, per in sorted(stats.items()):
         rat = runtime_ratios(per)
         lrat = length_ratios(per)
         for n in plots.planner_order(list(per)):
             s = per[n]
             r = rat.get(n)
-            L.append(f"| {_scene(scene, limit, stats)} | {n} | {s.cases} | "
+            L.append(f"| {_scene(key, stats)} | {n} | {s.cases} | "
                      f"{_pc(s.failure_rate)} | {_s(s.mean_runtime_s)} / "
                      f"{_s(s.median_runtime_s)} / {_s(s.p95_runtime_s)} | "
                      f"{_s(s.median_first_solution_s)} / {_s(s.p95_first_solution_s)} | "
@@ -249,12 +258,12 @@ def _summary_table(stats: Stats) -> str:
 
 
 def _rows_for(stats: Stats, names: tuple[str, ...],
-              line: Callable[[str, float, str, PlannerStats], str]) -> list[str]:
+              line: Callable[[StatsKey, str, PlannerStats], str]) -> list[str]:
     out = []
-    for (scene, limit), per in sorted(stats.items()):
+    for key, per in sorted(stats.items()):
         for n in names:
             if n in per:
-                out.append(line(scene, limit, n, per[n]))
+                out.append(line(key, n, per[n]))
     if not out:
         out.append(f"\n(No runs of {', '.join(names)} in this database.)")
     return out
@@ -269,9 +278,10 @@ def _table_i(stats: Stats) -> str:
          "p95 runtime (s) | Average path length (rad) | Median path length (rad) |",
          "|---|---|---|---|---|---|---|---|"]
 
-    def line(scene: str, limit: float, n: str, s: PlannerStats) -> str:
+    def line(key: StatsKey, n: str, s: PlannerStats) -> str:
+        scene = key.scene
         p = paper.TABLE_I.get(scene, {}).get(paper.PAPER_PLANNER.get(n, ""))
-        return (f"| {_env(scene, limit, stats)} | {_pname(n)} | "
+        return (f"| {_env(key, stats)} | {_pname(n)} | "
                 f"{_both(_pc(s.failure_rate), _pc(p[0]) if p else '—')} | "
                 f"{_both(_s(s.mean_runtime_s), _s(p[1], 2) if p else '—')} | "
                 f"{_s(s.median_runtime_s)} | {_s(s.p95_runtime_s)} | "
@@ -293,10 +303,11 @@ def _table_ii(stats: Stats) -> str:
          "Seed failure rate | Failure rate | Returned paths in collision |",
          "|---|---|---|---|---|---|---|---|---|---|---|"]
 
-    def line(scene: str, limit: float, n: str, s: PlannerStats) -> str:
+    def line(key: StatsKey, n: str, s: PlannerStats) -> str:
+        scene = key.scene
         seed = n.removesuffix("+TrajOpt")
         p = paper.TABLE_II.get(scene, {}).get(paper.PAPER_PLANNER.get(seed, ""))
-        return (f"| {_env(scene, limit, stats)} | {_pname(seed)} | "
+        return (f"| {_env(key, stats)} | {_pname(seed)} | "
                 f"{_both(_s(s.mean_trajopt_time_s), _s(p[0], 2) if p else '—')} | "
                 f"{_both(_s(s.mean_runtime_s), _s(p[1], 2) if p else '—')} | "
                 f"{_s(s.median_runtime_s)} | {_s(s.p95_runtime_s)} | "
@@ -318,14 +329,14 @@ def _table_iii(stats: Stats) -> str:
          "| Environment | Failure rate | Average runtime (s) | Median runtime (s) | "
          "p95 runtime (s) | Average path length (rad) | Best average (rad) |",
          "|---|---|---|---|---|---|---|"]
-    for (scene, limit), per in sorted(stats.items()):
+    for key, per in sorted(stats.items()):
         s = per.get(ROADMAP)
         if s is None:
             continue
-        p = paper.TABLE_III.get(scene)
+        p = paper.TABLE_III.get(key.scene)
         best = [per[n].mean_path_length_rad for n in SAMPLING
                 if n in per and math.isfinite(per[n].mean_path_length_rad)]
-        L.append(f"| {_env(scene, limit, stats)} | "
+        L.append(f"| {_env(key, stats)} | "
                  f"{_both(_pc(s.seed_failure_rate), _pc(p[0]) if p else '—')} | "
                  f"{_both(_s(s.mean_seed_time_s), _s(p[1], 2) if p else '—')} | "
                  f"{_s(s.median_seed_time_s)} | {_s(s.p95_seed_time_s)} | "
@@ -345,11 +356,12 @@ def _table_iv(stats: Stats) -> str:
          "length (rad) | Collision rate | Failure rate | Fallback to seed |",
          "|---|---|---|---|---|---|---|---|---|---|---|"]
 
-    def line(scene: str, limit: float, n: str, s: PlannerStats) -> str:
+    def line(key: StatsKey, n: str, s: PlannerStats) -> str:
+        scene = key.scene
         seed = n.removesuffix("+TrajOpt")
         seed = "Roadmap+TrajOpt" if n == ROADMAP else seed
         p = paper.TABLE_IV.get(scene, {}).get(paper.PAPER_PLANNER.get(seed, ""))
-        return (f"| {_env(scene, limit, stats)} | "
+        return (f"| {_env(key, stats)} | "
                 f"{'Roadmap' if n == ROADMAP else _pname(seed)} | "
                 f"{_both(_s(s.mean_trajopt_time_s), _s(p[0], 2) if p else '—')} | "
                 f"{_both(_s(s.mean_seed_length_rad, 2), _s(p[1], 2) if p else '—')} | "
@@ -363,9 +375,11 @@ def _table_iv(stats: Stats) -> str:
     return "\n".join(L + _rows_for(stats, names, line))
 
 
-def _env(scene: str, limit: float, stats: Stats) -> str:
-    title = paper.SCENE_TITLES.get(scene, scene)
-    return title + (f" ({limit:g} s)" if sum(1 for s, _ in stats if s == scene) > 1 else "")
+def _env(key: StatsKey, stats: Stats) -> str:
+    """The paper's title of the scene, with the time limit and family as in
+    :func:`stats_label`."""
+    label = stats_label(key, stats)
+    return paper.SCENE_TITLES.get(key.scene, key.scene) + label[len(key.scene):]
 
 
 def _pname(n: str) -> str:

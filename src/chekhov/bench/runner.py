@@ -6,17 +6,19 @@ a :class:`~chekhov.bench.database.BenchDatabase`, resumable.
     out = run_benchmark(BenchConfig(("tabletop_pole",), ("Roadmap+TrajOpt", "TrajOpt"),
                                     n_cases=20, time_limit_s=2.0), "bench.db")
 
-Flow: the main process loads each scene, its cases (``cached_solvable_cases`` or a case file)
-and, for Roadmap+TrajOpt, its roadmap (built and saved once, before any worker starts, so
-workers only load it); it records each planner's configuration (plannerConfigs) and skips the
-(scene, planner, case) runs the database already holds — checking that a stored run was made on
-the same case (content hash). The remaining runs go to the executor (local processes by
-default, or Ray), each claimed in the database just before it starts, so that runners sharing
-the database split the work (:mod:`chekhov.bench.claims`). Each finished run is written in its
-own transaction as it arrives, with its time added to its experiment's ``totaltime``, so an
-interruption — even SIGKILL — loses nothing already written. A case that cannot be run is
-recorded as that run's failure (:meth:`BenchWorker.run_all`) and logged. Where X and X+TrajOpt
-both run on a case, one run serves both (:func:`share_seed_runs`).
+Flow: the main process loads each scene, its cases of each family in ``config.families``
+(``cached_solvable_cases`` or a case file; each (scene, family) is one experiment, its
+``family`` column saying which) and, for Roadmap+TrajOpt, its roadmap (built and saved once,
+before any worker starts, so workers only load it); it records each planner's configuration
+(plannerConfigs) and skips the (scene, family, planner, case) runs the database already holds —
+checking that a stored run was made on the same case (content hash). The remaining runs go to
+the executor (local processes by default, or Ray), each claimed in the database just before it
+starts, so that runners sharing the database split the work (:mod:`chekhov.bench.claims`). Each
+finished run is written in its own transaction as it arrives, with its time added to its
+experiment's ``totaltime``, so an interruption — even SIGKILL — loses nothing already written.
+A case that cannot be run is recorded as that run's failure (:meth:`BenchWorker.run_all`) and
+logged. Where X and X+TrajOpt both run on a case, one run serves both
+(:func:`share_seed_runs`).
 """
 
 from __future__ import annotations
@@ -64,7 +66,8 @@ class BenchOutcome:
     """What :func:`run_benchmark` did.
 
     Attributes:
-        db_path: the database. experiment_ids: scene → experiments.id.
+        db_path: the database. experiment_ids: (scene, experiments.id) of every experiment
+            (one per scene and case family; ``experiment_families`` says which).
         planned: runs selected in all; skipped: already in the database at the start; ran:
             run and written by this call; by_others: written meanwhile by another runner on
             the same database (not run here). When the call completes, planned = skipped +
@@ -80,30 +83,38 @@ class BenchOutcome:
     time_s: float
     workers: int
     by_others: int = 0
+    experiment_families: tuple[tuple[str, str, int], ...] = ()
 
-    def experiment_id(self, scene: str) -> int:
-        return dict(self.experiment_ids)[scene]
+    def experiment_id(self, scene: str, family: str = "random") -> int:
+        """experiments.id of ``scene`` and case ``family``."""
+        return {(s, f): e for s, f, e in self.experiment_families}[(scene, family)]
 
 
 @dataclass
 class _Plan:
-    """The runs still to do: experiments and planner configs by scene, tasks in any order."""
+    """The runs still to do: experiments by (scene, family), planner configs by scene, tasks
+    in any order."""
 
-    exp_ids: dict[str, int] = field(default_factory=dict)
+    exp_ids: dict[tuple[str, str], int] = field(default_factory=dict)
     planner_ids: dict[tuple[str, str], int] = field(default_factory=dict)
     tasks: list[RunTask] = field(default_factory=list)
     skipped: int = 0
 
 
-def load_cases(world: World, config: BenchConfig) -> tuple[CaseSet, str]:
-    """The first ``config.n_cases`` cases of the scene and a description of their source."""
-    scene = world.scene.name
-    path = config.case_file(scene)
-    if path is None:
-        cases = cached_solvable_cases(world, config.n_cases, config.case_seed)
-        return (cases, f"generated (seed {config.case_seed}, solvability pass: "
+def load_cases(world: World, config: BenchConfig, family: str = "random"
+               ) -> tuple[CaseSet, str]:
+    """The first ``config.n_cases`` cases of the scene's ``family`` and a description of their
+    source (for the random family the same text as before the families, so that databases
+    written then resume)."""
+    files = [CaseSet.load(p, world) for p in config.case_files_of(world.scene.name)]
+    found = [(p, c) for p, c in zip(config.case_files_of(world.scene.name), files,
+                                    strict=True) if c.family == family]
+    if not found:
+        cases = cached_solvable_cases(world, config.n_cases, config.case_seed, family=family)
+        kind = "" if family == "random" else f"{family} cases, "
+        return (cases, f"generated ({kind}seed {config.case_seed}, solvability pass: "
                        f"{cases.replaced} replaced)")
-    cases = CaseSet.load(path, world)
+    path, cases = found[0]
     if len(cases) < config.n_cases:
         raise ChekhovError(f"{path}: {len(cases)} cases, --cases asks for {config.n_cases}")
     return (cases.head(config.n_cases),
@@ -122,14 +133,17 @@ def run_benchmark(config: BenchConfig, db_path: str | Path, progress: bool = Tru
         # case-major order: every scene and planner advances together, so an interrupted
         # benchmark has comparable data and the ETA is representative
         tasks = sorted(plan.tasks, key=lambda t: (t.case_index, config.scenes.index(t.scene),
+                                                  config.families.index(t.family),
                                                   config.planners.index(t.planner)))
         n_runs = len(tasks)
         if config.share_seed_runs:
             tasks = share_seed_runs(tasks)
         workers = config.local_workers if config.executor == "local" else (config.workers or 0)
         ran, by_others = _execute(db, config, plan, tasks, n_runs, progress)
-    return BenchOutcome(str(db_path), tuple(plan.exp_ids.items()), n_runs + plan.skipped,
-                        plan.skipped, ran, time.perf_counter() - t0, workers, by_others)
+    return BenchOutcome(str(db_path), tuple((s, e) for (s, _), e in plan.exp_ids.items()),
+                        n_runs + plan.skipped, plan.skipped, ran, time.perf_counter() - t0,
+                        workers, by_others,
+                        tuple((s, f, e) for (s, f), e in plan.exp_ids.items()))
 
 
 def _plan_scene(db: BenchDatabase, db_path: Path, config: BenchConfig, scene: str,
@@ -137,20 +151,8 @@ def _plan_scene(db: BenchDatabase, db_path: Path, config: BenchConfig, scene: st
     """Record the scene's experiment and planner configs in ``plan`` and add the runs the
     database does not hold yet to ``plan.tasks`` (a stored run must be of the same case)."""
     world = World.load(scene)
-    cases, source = load_cases(world, config)
     roadmap = (load_roadmap_for(world, config)
                if any(uses_roadmap(n) for n in config.planners) else None)
-    setup = json.dumps({"scene": world.scene.name, "robot": world.robot.name,
-                        "cases": source, "time_limit_s": config.time_limit_s,
-                        "resolution_rad": config.resolution,
-                        "exact_substeps": config.exact_substeps})
-    eid = db.experiment_id(
-        world.scene.name, world.scene.content_hash(), config.case_seed, source,
-        config.time_limit_s, config.exact_substeps, config.resolution, setup=setup,
-        version=_version(), hostname=socket.gethostname(), cpuinfo=_cpuinfo())
-    db.set_runcount(eid, config.n_cases)
-    plan.exp_ids[scene] = eid
-    hashes = [case_hash(cases.q_start[i], cases.T_world_ee_goal[i]) for i in range(len(cases))]
 
     def get_roadmap() -> Roadmap:
         if roadmap is None:  # pragma: no cover - loaded whenever Roadmap+TrajOpt runs
@@ -162,19 +164,41 @@ def _plan_scene(db: BenchDatabase, db_path: Path, config: BenchConfig, scene: st
         planner = spec.build(world, get_roadmap)
         pid = db.planner_id(name, settings_text(planner_settings(spec, planner, roadmap)))
         plan.planner_ids[(scene, name)] = pid
-        done = db.done_cases(eid, pid)
+    for family in config.families:
+        _plan_family(db, db_path, config, world, scene, family, plan)
+
+
+def _plan_family(db: BenchDatabase, db_path: Path, config: BenchConfig, world: World,
+                 scene: str, family: str, plan: _Plan) -> None:
+    """The experiment of (scene, family) and its runs not stored yet (see _plan_scene)."""
+    cases, source = load_cases(world, config, family)
+    setup = {"scene": world.scene.name, "robot": world.robot.name,
+             "cases": source, "time_limit_s": config.time_limit_s,
+             "resolution_rad": config.resolution, "exact_substeps": config.exact_substeps}
+    if family != "random":   # the random family's setup text is as before the families
+        setup["family"] = family
+    eid = db.experiment_id(
+        world.scene.name, world.scene.content_hash(), config.case_seed, source,
+        config.time_limit_s, config.exact_substeps, config.resolution,
+        setup=json.dumps(setup), version=_version(), hostname=socket.gethostname(),
+        cpuinfo=_cpuinfo(), family=family)
+    db.set_runcount(eid, config.n_cases)
+    plan.exp_ids[(scene, family)] = eid
+    hashes = [case_hash(cases.q_start[i], cases.T_world_ee_goal[i]) for i in range(len(cases))]
+    for name in config.planners:
+        done = db.done_cases(eid, plan.planner_ids[(scene, name)])
         for i in range(len(cases)):
             if i in done:
                 if done[i] != hashes[i]:
                     raise ChekhovError(
-                        f"{db_path}: the run of {name} on case {i} of '{scene}' was "
-                        f"made on another case (hash {done[i]}, now {hashes[i]}); "
-                        "use another --db file")
+                        f"{db_path}: the run of {name} on case {i} of '{scene}' ({family} "
+                        f"cases) was made on another case (hash {done[i]}, now "
+                        f"{hashes[i]}); use another --db file")
                 plan.skipped += 1
                 continue
             plan.tasks.append(RunTask(scene, name, i, cases.q_start[i],
                                       cases.T_world_ee_goal[i], config.time_limit_s,
-                                      _run_seed(config.planner_seed, i)))
+                                      _run_seed(config.planner_seed, i), family=family))
 
 
 def _execute(db: BenchDatabase, config: BenchConfig, plan: _Plan, tasks: list[RunTask],
@@ -183,7 +207,7 @@ def _execute(db: BenchDatabase, config: BenchConfig, plan: _Plan, tasks: list[Ru
     time added to its experiment's ``totaltime``; returns (runs written, runs found written
     by another runner)."""
     def keys(t: RunTask) -> list[Key]:
-        eid = plan.exp_ids[t.scene]
+        eid = plan.exp_ids[(t.scene, t.family)]
         out = [(eid, plan.planner_ids[(t.scene, t.planner)], t.case_index)]
         base = seed_planner_name(t.planner)
         if t.records_seed_run and base is not None:
@@ -205,7 +229,8 @@ def _execute(db: BenchDatabase, config: BenchConfig, plan: _Plan, tasks: list[Ru
             shared = rec.seed_stage_of is not None  # its planning time is counted once
             seconds = (0.0 if shared else rec.time_s) + rec.exact_check_s
             pid = plan.planner_ids[(rec.scene, rec.planner)]
-            if db.insert_run(plan.exp_ids[rec.scene], pid, rec, seconds) is None:
+            if db.insert_run(plan.exp_ids[(rec.scene, rec.family)], pid, rec,
+                             seconds) is None:
                 lost += 1   # another runner took this run over and wrote it first
             else:
                 ran += 1
@@ -227,9 +252,9 @@ def share_seed_runs(tasks: list[RunTask]) -> list[RunTask]:
     out: list[RunTask] = []
     for t in tasks:
         base = seed_planner_name(t.planner)
-        if base is not None and (t.scene, base, t.case_index) in keys:
+        if base is not None and (t.scene, t.family, base, t.case_index) in keys:
             out.append(replace(t, records_seed_run=True))
-        elif (t.scene, f"{t.planner}+TrajOpt", t.case_index) not in keys \
+        elif (t.scene, t.family, f"{t.planner}+TrajOpt", t.case_index) not in keys \
                 or seed_planner_name(f"{t.planner}+TrajOpt") is None:
             out.append(t)
     return out

@@ -1,5 +1,9 @@
-"""Per scene and planner statistics of stored runs, the ``--summary-json`` file and the
-printed summary table.
+"""Per scene, case family and planner statistics of stored runs, the ``--summary-json`` file
+and the printed summary table.
+
+Statistics are grouped by :class:`StatsKey` (scene, time limit, case family); every row of the
+summary JSON says its ``family`` ("random" or "tasks"), and the random family keeps the keys it
+had before the families (``scenes`` → scene → planner; see :func:`summary_json`).
 
 Definitions (every run counts, failures included, unless said otherwise):
 
@@ -29,17 +33,38 @@ import math
 from collections import Counter
 from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 ROADMAP = "Roadmap+TrajOpt"
 
 
+class StatsKey(NamedTuple):
+    """What one group of statistics is of: a scene, a time limit (s) and a case family."""
+
+    scene: str
+    time_limit_s: float
+    family: str = "random"
+
+
+def stats_label(key: StatsKey, keys: Iterable[StatsKey]) -> str:
+    """How tables name the group ``key`` among ``keys``: the scene, its time limit when the
+    scene and family were run under several, its family in brackets when any is not
+    random (so that the families of a scene stand side by side)."""
+    keys = list(keys)
+    out = key.scene
+    if sum(1 for k in keys if (k.scene, k.family) == (key.scene, key.family)) > 1:
+        out += f" ({key.time_limit_s:g} s)"
+    if any(k.family != "random" for k in keys):
+        out += f" [{key.family}]"
+    return out
+
+
 @dataclass(frozen=True)
 class PlannerStats:
-    """Statistics of one planner in one experiment (scene and time limit). Times s, lengths
-    rad, rates fractions; nan where undefined (e.g. no successful run)."""
+    """Statistics of one planner in one experiment (scene, case family and time limit). Times
+    s, lengths rad, rates fractions; nan where undefined (e.g. no successful run)."""
 
     scene: str
     planner: str
@@ -52,6 +77,7 @@ class PlannerStats:
     mean_path_length_rad: float
     median_path_length_rad: float
     collision_rate: float
+    family: str = "random"
     mean_duration_s: float = math.nan
     median_duration_s: float = math.nan
     median_first_solution_s: float = math.nan
@@ -74,19 +100,24 @@ class PlannerStats:
                 if k not in ("scene", "planner", "case_lengths")}
 
 
-def compute_stats(rows: Iterable[dict[str, Any]]) -> dict[tuple[str, float], dict[str,
-                                                                                   PlannerStats]]:
-    """(scene, time limit) → planner → stats, from :meth:`BenchDatabase.rows` dicts."""
-    groups: dict[tuple[str, float, str], list[dict[str, Any]]] = {}
+Stats = dict[StatsKey, dict[str, PlannerStats]]
+
+
+def compute_stats(rows: Iterable[dict[str, Any]]) -> Stats:
+    """(scene, time limit, family) → planner → stats, from :meth:`BenchDatabase.rows` dicts
+    (a row without ``family`` is of the random family)."""
+    groups: dict[tuple[StatsKey, str], list[dict[str, Any]]] = {}
     for r in rows:
-        groups.setdefault((r["scene"], float(r["timelimit"]), r["planner"]), []).append(r)
-    out: dict[tuple[str, float], dict[str, PlannerStats]] = {}
-    for (scene, limit, planner), rs in groups.items():
-        out.setdefault((scene, limit), {})[planner] = _stats(scene, planner, limit, rs)
+        key = StatsKey(r["scene"], float(r["timelimit"]), r.get("family") or "random")
+        groups.setdefault((key, r["planner"]), []).append(r)
+    out: Stats = {}
+    for (key, planner), rs in groups.items():
+        out.setdefault(key, {})[planner] = _stats(key, planner, rs)
     return out
 
 
-def _stats(scene: str, planner: str, limit: float, rs: list[dict[str, Any]]) -> PlannerStats:
+def _stats(key: StatsKey, planner: str, rs: list[dict[str, Any]]) -> PlannerStats:
+    scene, limit = key.scene, key.time_limit_s
     n = len(rs)
     t = np.array([r["time"] for r in rs], dtype=float)
     ok = [r for r in rs if r["success"]]
@@ -114,6 +145,7 @@ def _stats(scene: str, planner: str, limit: float, rs: list[dict[str, Any]]) -> 
             extra["fallback_rate"] = (sum(1 for r in rs if r["fallback_to_seed"]) / n)
     statuses = Counter(str(r.get("failure_kind_text") or r.get("status_text")) for r in rs)
     return PlannerStats(scene=scene, planner=planner, time_limit_s=limit, cases=n,
+                        family=key.family,
                         failure_rate=1.0 - len(ok) / n, mean_runtime_s=_mean(t),
                         median_runtime_s=_median(t), p95_runtime_s=_pct(t, 95),
                         mean_path_length_rad=_mean(lengths),
@@ -184,19 +216,22 @@ def targets(stats: dict[str, PlannerStats]) -> dict[str, bool]:
     }
 
 
-def summary_json(stats: dict[tuple[str, float], dict[str, PlannerStats]],
-                 meta: dict[str, Any] | None = None) -> dict[str, Any]:
-    """The ``--summary-json`` document: ``scenes`` → scene → planner → statistics (with
-    ``roadmap_mean_runtime_ratio`` / ``roadmap_median_runtime_ratio``: Roadmap+TrajOpt's over
-    this planner's; ``roadmap_path_length_ratio_common_cases``: see :func:`length_ratios`),
-    ``ratios`` (the runtime ratios, by scene), ``targets`` (see :func:`targets`).
-    A scene benchmarked under several time limits is keyed ``scene@LIMITs``."""
+def summary_json(stats: Stats, meta: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The ``--summary-json`` document: ``families`` (those present), ``scenes`` → scene →
+    planner → statistics (each with its ``family``; with ``roadmap_mean_runtime_ratio`` /
+    ``roadmap_median_runtime_ratio``: Roadmap+TrajOpt's over this planner's;
+    ``roadmap_path_length_ratio_common_cases``: see :func:`length_ratios`), ``ratios`` (the
+    runtime ratios, by scene), ``targets`` (see :func:`targets`). The random family's cases
+    are keyed by the scene, the task family's ``scene@tasks``; a scene and family benchmarked
+    under several time limits adds ``@LIMITs``."""
     scenes: dict[str, Any] = {}
     ratios: dict[str, Any] = {}
     goals: dict[str, Any] = {}
-    multi = Counter(scene for scene, _ in stats)
-    for (scene, limit), per in sorted(stats.items()):
-        key = scene if multi[scene] == 1 else f"{scene}@{limit:g}s"
+    multi = Counter((k.scene, k.family) for k in stats)
+    for k, per in sorted(stats.items()):
+        key = k.scene + ("" if k.family == "random" else f"@{k.family}")
+        if multi[(k.scene, k.family)] > 1:
+            key += f"@{k.time_limit_s:g}s"
         rat = runtime_ratios(per)
         lrat = length_ratios(per)
         entry = {}
@@ -212,22 +247,25 @@ def summary_json(stats: dict[tuple[str, float], dict[str, PlannerStats]],
         if rat:
             ratios[key] = {n: {k: _clean(v) for k, v in r.items()} for n, r in rat.items()}
             goals[key] = targets(per)
-    return {**(meta or {}), "scenes": scenes, "ratios": ratios, "targets": goals}
+    return {**(meta or {}), "families": sorted({k.family for k in stats}), "scenes": scenes,
+            "ratios": ratios, "targets": goals}
 
 
-def format_table(stats: dict[tuple[str, float], dict[str, PlannerStats]]) -> str:
-    """The summary table (plain text), one line per scene and planner."""
-    head = (f"{'scene':20s} {'planner':22s} {'limit s':>7s} {'cases':>5s} {'fail':>7s} "
+def format_table(stats: Stats) -> str:
+    """The summary table (plain text), one line per scene, family and planner."""
+    head = (f"{'scene':20s} {'family':6s} {'planner':22s} {'limit s':>7s} {'cases':>5s} "
+            f"{'fail':>7s} "
             f"{'mean s':>8s} {'median s':>8s} {'p95 s':>8s} {'length':>7s} {'coll':>6s} "
             f"{'RM/mean':>8s} {'RM/med':>7s}")
     lines = [head, "-" * len(head)]
-    for (scene, limit), per in sorted(stats.items()):
+    for (scene, limit, family), per in sorted(stats.items()):
         rat = runtime_ratios(per)
         for name in sorted(per, key=lambda n: (n != ROADMAP, n)):
             s = per[name]
             r = rat.get(name, {})
             lines.append(
-                f"{scene:20s} {name:22s} {limit:7.3g} {s.cases:5d} {s.failure_rate:7.1%} "
+                f"{scene:20s} {family:6s} {name:22s} {limit:7.3g} {s.cases:5d} "
+                f"{s.failure_rate:7.1%} "
                 f"{s.mean_runtime_s:8.3f} {s.median_runtime_s:8.3f} {s.p95_runtime_s:8.3f} "
                 f"{_fmt(s.mean_path_length_rad, 7, 2)} {s.collision_rate:6.1%} "
                 f"{_fmt(r.get('mean', math.nan), 8, 3)} {_fmt(r.get('median', math.nan), 7, 3)}")

@@ -30,6 +30,7 @@ class RunTask:
         records_seed_run: for "X+TrajOpt": the seed stage of this run is also recorded as X's
             run on the case (X alone is the same planner, seeded the same way, so running it
             twice would only repeat the work; see ``BenchConfig.share_seed_runs``).
+        family: the case family ("random" or "tasks"; :data:`chekhov.cases.FAMILIES`).
     """
 
     scene: str
@@ -40,10 +41,11 @@ class RunTask:
     time_limit_s: float
     seed: int
     records_seed_run: bool = False
+    family: str = "random"
 
     @property
-    def key(self) -> tuple[str, str, int]:
-        return (self.scene, self.planner, self.case_index)
+    def key(self) -> tuple[str, str, str, int]:
+        return (self.scene, self.family, self.planner, self.case_index)
 
     @property
     def case_hash(self) -> str:

@@ -125,7 +125,7 @@ class BenchWorker:
         return [RunRecord(task.scene, name, task.case_index, task.case_hash, solved=False,
                           status=status, time_s=time_s,
                           info={**info, "planner": name, **extra}, worker=self.name,
-                          seed_stage_of=extra.get("seed_stage_of"))
+                          seed_stage_of=extra.get("seed_stage_of"), family=task.family)
                 for name, extra in zip(names, shared, strict=False)]
 
     def _record(self, world: World, task: RunTask, name: str, r: PlanResult,
@@ -161,7 +161,7 @@ class BenchWorker:
             fallback_to_seed=r.fell_back_to_seed,
             info={**scalar_items(r.info), **timed, **(extra_info or {}),
                   **({"first_solution_s": r.first_solution_s} if path is not None else {})},
-            worker=self.name)
+            worker=self.name, family=task.family)
 
 
 def load_roadmap_for(world: World, config: BenchConfig) -> Roadmap:

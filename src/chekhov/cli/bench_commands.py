@@ -1,6 +1,7 @@
 """Benchmark commands: ``chekhov bench`` and ``chekhov report``.
 
-    chekhov bench [--scenes SCENE...] [--planners NAME...] [--cases N] [--time-limit S]
+    chekhov bench [--scenes SCENE...] [--planners NAME...] [--family random|tasks|both]
+                  [--cases N] [--time-limit S]
                   [--db FILE] [--workers W] [--executor local|ray] [--address A]
                   [--summary-json FILE] [--csv FILE] [--case-seed S] [--case-file FILE...]
                   [--report DIR] [--no-share-seed-runs] [--no-progress]
@@ -24,6 +25,8 @@ if TYPE_CHECKING:
     from chekhov.bench.config import BenchConfig
 
 MAX_CASES = 1_000_000
+# --family → the case families run
+FAMILY_CHOICES = {"random": ("random",), "tasks": ("tasks",), "both": checks.CASE_FAMILIES}
 
 
 def _check_scenes(names: list[str] | None) -> dict[str, str]:
@@ -44,26 +47,30 @@ def _check_scenes(names: list[str] | None) -> dict[str, str]:
     return out
 
 
-def _check_case_files(files: list[str] | None, scenes: dict[str, str]
-                      ) -> tuple[tuple[str, str], ...]:
+def _check_case_files(files: list[str] | None, scenes: dict[str, str],
+                      families: tuple[str, ...] = ("random",)) -> tuple[tuple[str, str], ...]:
     """(``--scenes`` entry, case file) of each ``--case-file``, matched by the scene it was
-    made for; at most one per scene."""
+    made for; at most one per scene and case family, of a family in ``families``."""
     from chekhov.cases import CaseSet
 
     entry_of = {name: entry for entry, name in scenes.items()}
-    out: dict[str, str] = {}
+    out: dict[tuple[str, str], str] = {}
     for f in files or []:
         checks.input_file(f, "--case-file")
-        scene = CaseSet.load(f).scene
+        cases = CaseSet.load(f)
+        scene, family = cases.scene, cases.family
         entry = entry_of.get(scene)
         if entry is None:
             raise ChekhovError(f"--case-file {f}: cases of scene '{scene}', which is not in "
                                f"--scenes {list(scenes)}")
-        if entry in out:
+        if family not in families:
+            raise ChekhovError(f"--case-file {f}: cases of family '{family}', which --family "
+                               f"does not run ({', '.join(families)})")
+        if (entry, family) in out:
             raise ChekhovError(f"--case-file {f}: a second case file for scene '{scene}' "
-                               f"(first: {out[entry]})")
-        out[entry] = str(f)
-    return tuple(out.items())
+                               f"and family '{family}' (first: {out[(entry, family)]})")
+        out[(entry, family)] = str(f)
+    return tuple((entry, f) for (entry, _), f in out.items())
 
 
 def _check_outputs(args: argparse.Namespace) -> None:
@@ -92,8 +99,9 @@ def _check_bench_args(args: argparse.Namespace) -> BenchConfig:
         raise type(e)(f"--planners: {e}") from e
     if args.executor == "ray" and importlib.util.find_spec("ray") is None:
         raise ChekhovError("--executor ray needs Ray: pip install 'chekhov[ray]'")
-    case_files = _check_case_files(args.case_file, scenes)
-    config = BenchConfig(scenes=tuple(scenes), planners=planners,
+    families = FAMILY_CHOICES[args.family]
+    case_files = _check_case_files(args.case_file, scenes, families)
+    config = BenchConfig(scenes=tuple(scenes), planners=planners, families=families,
                          n_cases=args.cases, time_limit_s=args.time_limit,
                          case_seed=args.case_seed, case_files=case_files,
                          workers=args.workers, executor=args.executor, address=args.address,
@@ -109,7 +117,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     from chekhov.bench.summary import compute_stats, format_table, summary_json
 
     config = _check_bench_args(args)
-    print(f"bench: {len(config.scenes)} scene(s) × {len(config.planners)} planner(s) × "
+    print(f"bench: {len(config.scenes)} scene(s) × {len(config.families)} case family(ies) "
+          f"({', '.join(config.families)}) × {len(config.planners)} planner(s) × "
           f"{config.n_cases} case(s), time limit {config.time_limit_s:g} s per plan, "
           f"executor {config.executor}, database {args.db}", file=sys.stderr)
     out = run_benchmark(config, args.db, progress=not args.no_progress)
@@ -126,6 +135,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         doc = summary_json(stats, {"database": str(args.db),
                                    "time_limit_s": config.time_limit_s,
                                    "cases_per_scene": config.n_cases,
+                                   "case_families": list(config.families),
                                    "planners": list(config.planners),
                                    "executor": config.executor})
         write_text(args.summary_json, json.dumps(doc, indent=1) + "\n")
@@ -164,8 +174,13 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help=f"planners ({', '.join(PLANNER_NAMES)}) or groups "
                         f"({', '.join(f'{k}: {len(v)}' for k, v in GROUPS.items())}); "
                         "default all")
+    b.add_argument("--family", choices=tuple(FAMILY_CHOICES), default="random",
+                   help="case family: random (start and goal uniform within the joint limits, "
+                        "the paper's; default), tasks (pre-grasp or ready configuration to "
+                        "another object's pre-grasp or a place pose) or both, each its own "
+                        "experiment")
     b.add_argument("--cases", type=checks.int_at_least(1, MAX_CASES), default=20, metavar="N",
-                   help="cases per scene (default 20)")
+                   help="cases per scene and family (default 20)")
     b.add_argument("--time-limit", type=checks.positive_seconds, default=DEFAULT_TIME_LIMIT_S,
                    metavar="S",
                    help=f"time limit of every plan call, s (default {DEFAULT_TIME_LIMIT_S:g}; "
@@ -185,7 +200,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help=f"seed of generated cases, 0..{checks.SEED_MAX} (default 0)")
     b.add_argument("--case-file", nargs="+", metavar="FILE",
                    help="case files (chekhov cases generate) to use instead of generated "
-                        "cases, one per scene")
+                        "cases, one per scene and family")
     b.add_argument("--report", metavar="DIR", help="also write the report into DIR")
     b.add_argument("--no-share-seed-runs", action="store_true",
                    help="run X alone separately from X+TrajOpt (default: X's run is the seed "
