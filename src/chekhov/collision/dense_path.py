@@ -9,7 +9,7 @@ substep's joint step, L_gi a bound on the distance from joint i to c_g that hold
 configuration), the group stays clear for floor(d / D_g) substeps. Self-collision pairs get
 certificates the same way, against D_a + D_b. A configuration whose groups and pairs are all
 certified is free for the fast checker; any other is checked in full by
-:func:`validity.config_collides`. So the answer is the same as checking every configuration
+:func:`validity.collisions`. So the answer is the same as checking every configuration
 with the fast checker, at a fraction of the cost. The lever-arm bounds L_gi are
 ``PackedWorld.groups.lever`` (:func:`lever_arms`).
 """
@@ -23,7 +23,7 @@ from numba import njit
 
 from chekhov.collision.codes import NONE
 from chekhov.collision.kernels import grid_cell, signed_distance
-from chekhov.collision.validity import config_collides, make_work
+from chekhov.collision.validity import collisions, make_work
 from chekhov.robot.chain_kinematics import chain_fk_arrays
 
 
@@ -79,6 +79,8 @@ def _walk(P0, P1, n, m_first, m_last, check_ends, world, work, ww
                                      grids.fine, grids.fixed)
     dk, dR, dp, ds = dyn.kind, dyn.R, dyn.p, dyn.size
     until, puntil, step_len, q, Rc, pc, gwc = ww
+    q_row = q.reshape((1, K))   # q, as the one row validity.collisions checks
+    hit = np.empty(1, dtype=np.bool_)
     G = gr.shape[0]
     for g in range(G):
         until[g] = -1
@@ -129,7 +131,7 @@ def _walk(P0, P1, n, m_first, m_last, check_ends, world, work, ww
             continue
         if not check_ends and (m == 0 or m == n):
             continue
-        if config_collides(q, world, work):
+        if collisions(q_row, world, work, hit, True) != NONE:
             return m
     return NONE
 
@@ -174,7 +176,8 @@ def motions_valid_dense(Q0, Q1, resolution, world):  # pragma: no cover - compil
     K = Q0.shape[1]
     work = make_work(K, world)
     ww = make_walk_work(K, world)
-    q = ww.q
+    probes = np.empty((3, K))
+    hits = np.empty(3, dtype=np.bool_)
     out = np.empty(Q0.shape[0], dtype=np.bool_)
     for i in range(Q0.shape[0]):
         d = 0.0
@@ -184,15 +187,13 @@ def motions_valid_dense(Q0, Q1, resolution, world):  # pragma: no cover - compil
         if n <= 1:
             out[i] = True
             continue
-        hit = False  # the first levels of the bisection order catch most collisions early
+        m = 0  # the first levels of the bisection order catch most collisions early
         for k in (n // 2, n // 4, (3 * n) // 4):
             if 0 < k < n:
                 for a in range(K):
-                    q[a] = Q0[i, a] + (k / n) * (Q1[i, a] - Q0[i, a])
-                if config_collides(q, world, work):
-                    hit = True
-                    break
-        if hit:
+                    probes[m, a] = Q0[i, a] + (k / n) * (Q1[i, a] - Q0[i, a])
+                m += 1
+        if collisions(probes[:m], world, work, hits, True) != NONE:
             out[i] = False
             continue
         out[i] = _walk(Q0[i], Q1[i], n, 0, n - 1, False, world, work, ww) < 0

@@ -11,7 +11,7 @@ Small kernels called from other compiled functions (FK, signed distances, grid l
 ``inline="always"``: numba does not inline a call into another cached function by itself, and
 the call (with its arrays passed as structs) costs more than the work. Inlining them doubled
 the fast checker's rate (measured in alternating runs on 100k uniform configurations: shelf
-262k → 519k checks/s, kitchen 227k → 484k). ``validity.config_collides`` stays a call:
+262k → 519k checks/s, kitchen 227k → 484k). ``validity.collisions`` (a batch) stays a call:
 inlining it into its four callers gains about 6% for three times the compile time.
 """
 
