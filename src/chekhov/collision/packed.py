@@ -142,7 +142,10 @@ class Grids(NamedTuple):
     origin (3,) m; h, inv_h: the fine spacing (m) and its inverse; delta (m) the quantum;
     fine (M, n0, n1, n2) uint8: [0] static obstacles, then one grid per set of fixed parts a
     group is checked against, then the surface grids; coarse_h, inv_coarse_h, coarse: the same
-    static and fixed-part grids at three times the spacing (for the groups' bounding spheres);
+    static and fixed-part grids at three times the spacing (for the groups' bounding spheres),
+    then, per set of fixed parts, the nearer of the static grid and that set's (elementwise
+    minimum: a sphere it proves clear is clear of both, so one lookup clears most groups);
+    clear (G,): that coarse grid for group g (the static grid when g has no fixed parts);
     fixed (G,): group g's fixed-part grid, ``NONE`` when it has none; surface (G,): the grid
     that proves an inner ball touches g's fixed parts (their own grid when all are solids,
     else a surface grid), ``NONE`` when none; order (G,): the order the validity test visits
@@ -156,6 +159,7 @@ class Grids(NamedTuple):
     coarse_h: float
     inv_coarse_h: float
     coarse: NDArray[np.uint8]
+    clear: IntArray
     fixed: IntArray
     surface: IntArray
     order: IntArray
@@ -347,6 +351,8 @@ def _build_grids(robot: Robot, chain: KinematicChain, sph: Spheres, sample: Arra
     n = len(sets)
     fine = [build_grid(lo, hi, h, static), *fixed_grids[:n], *fixed_grids[2 * n:]]
     coarse = [build_grid(lo, hi, 3 * h, static), *fixed_grids[n:2 * n]]
+    both = [np.minimum(coarse[0].values, g.values) for g in coarse[1:]]
+    clear = np.where(gfix >= 0, gfix + n, 0).astype(np.int64)
     gsurf = gfix.copy()
     surface = iter(range(n + 1, len(fine)))   # in the order _surface_grids made them
     for m, fkey in enumerate(sets, start=1):
@@ -355,7 +361,8 @@ def _build_grids(robot: Robot, chain: KinematicChain, sph: Spheres, sample: Arra
     return Grids(origin=fine[0].origin, h=fine[0].h, inv_h=1.0 / fine[0].h,
                  delta=fine[0].delta, fine=np.stack([g.values for g in fine]),
                  coarse_h=coarse[0].h, inv_coarse_h=1.0 / coarse[0].h,
-                 coarse=np.stack([g.values for g in coarse]), fixed=gfix, surface=gsurf,
+                 coarse=np.stack([g.values for g in coarse] + both), clear=clear, fixed=gfix,
+                 surface=gsurf,
                  order=np.arange(len(gfix), dtype=np.int64))
 
 

@@ -181,11 +181,19 @@ def collisions(Q, world, work, out, stop):  # pragma: no cover - compiled
     clc, clr, cls, clm = clusters.centre, clusters.radius, clusters.start, clusters.members
     origin, delta, V, Vc = grids.origin, grids.delta, grids.fine, grids.coarse
     h, ih, hc, ihc = grids.h, grids.inv_h, grids.coarse_h, grids.inv_coarse_h
-    gfix, gsurf, order = grids.fixed, grids.surface, grids.order
+    gfix, gsurf, order, gclear = grids.fixed, grids.surface, grids.order, grids.clear
     geo = world.geometry
     gk, eR, ep, es, pad = geo.kind, geo.R, geo.p, geo.size, geo.pad
     pstart, vstart, hv, hcen = geo.part_start, geo.vert_start, geo.verts, geo.part_centre
 
+    # the confirmations' work space, allocated once for the batch (six small allocations
+    # per configuration cost as much as the grid lookups of a free one)
+    Rw = np.empty((3, 3))
+    pw = np.empty(3)
+    Rw2 = np.empty((3, 3))
+    pw2 = np.empty(3)
+    c = np.empty(3)
+    c2 = np.empty(3)
 
     def collides(q):
         chain_fk_arrays(q, parent, R0, p0, axis, Rb, pb)
@@ -196,12 +204,20 @@ def collisions(Q, world, work, out, stop):  # pragma: no cover - compiled
         npend = 0
         for gi in range(G):
             g = order[gi]  # groups that collide most often first: collisions end the test early
-            env = grid_classify(origin, ihc, hc, delta, Vc, 0, gw[g], gr[g])
-            fg = gfix[g]
-            fix = VALID if fg < 0 else grid_classify(origin, ihc, hc, delta, Vc, fg, gw[g], gr[g])
             nd = _near(dk, dR, dp, ds, gw[g], gr[g], cand)
-            if env == VALID and fix == VALID and nd == 0:
-                continue
+            fg = gfix[g]
+            # one lookup clears most groups of both the static obstacles and their fixed parts
+            if grid_classify(origin, ihc, hc, delta, Vc, gclear[g], gw[g], gr[g]) == VALID:
+                if nd == 0:
+                    continue
+                env = VALID
+                fix = VALID
+            else:
+                env = grid_classify(origin, ihc, hc, delta, Vc, 0, gw[g], gr[g])
+                fix = VALID if fg < 0 else grid_classify(origin, ihc, hc, delta, Vc, fg, gw[g],
+                                                         gr[g])
+                if env == VALID and fix == VALID and nd == 0:
+                    continue
             _centers(Rb, pb, sj, sc, gstart[g], gstart[g + 1], cw)
             done[g] = True
             if nd > 0:
@@ -280,12 +296,6 @@ def collisions(Q, world, work, out, stop):  # pragma: no cover - compiled
                 pend[npend, 0], pend[npend, 1], pend[npend, 2] = a, SELF, b
                 npend += 1
         # the uncertain hits, on the exact geometry
-        Rw = np.empty((3, 3))
-        pw = np.empty(3)
-        Rw2 = np.empty((3, 3))
-        pw2 = np.empty(3)
-        c = np.empty(3)
-        c2 = np.empty(3)
         for i in range(npend):
             g, src, o = pend[i, 0], pend[i, 1], pend[i, 2]
             _place(Rb, pb, gj, eR, ep, g, Rw, pw)
