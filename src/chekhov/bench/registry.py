@@ -63,6 +63,9 @@ def planner_settings(spec: PlannerSpec, planner: Planner, roadmap: Roadmap | Non
         d["straight_line_time_s"] = c.straight_line_time_s
         d["straight_line_fallback"] = c.straight_line_fallback
         d["goal_routes"] = c.goal_routes
+        d.update({k: getattr(c, k) for k in (
+            "repair", "repair_reserve", "straight_line_ratio", "straight_line_max_blocked",
+            "improve_time_s", "simplify_rounds")})
         d["seeder"] = asdict(p.seeder.config) if hasattr(p.seeder, "config") else {}
         d["trajopt"] = _trajopt_settings(c.trajopt)
     elif isinstance(p, OmplPlanner | LazyPRM):

@@ -237,7 +237,8 @@ class RoadmapTrajOpt(PlannerBase):
         """Shortcuts between any two points of the seed (seeded per query: the same query,
         the same answer); offered, and the new seed, when shorter."""
         t = time.perf_counter()
-        short = partial_shortcut(self.world.fast, seed, np.random.default_rng(0),
+        short = partial_shortcut(self.world.fast, seed,
+                                 np.random.default_rng(self.config.seeder.seed),
                                  rounds=self.config.simplify_rounds, deadline=stop)
         better = path_length(short) < path_length(seed) - 1e-9
         run.report(Stage.SIMPLIFY, PlanStatus.SOLVED, time.perf_counter() - t, short,

@@ -156,6 +156,9 @@ class SeederConfig:
         resolution: rad, motion check step; None: the roadmap's.
         repair: the bidirectional tree that connects into the roadmap when it cannot
             answer alone (:mod:`chekhov.roadmap.repair`, :meth:`RoadmapSeeder.repair`).
+        seed: seed of the random bridges' and the connection tree's samples; every
+            connection attempt starts a fresh generator, so a query's answer does not depend
+            on the queries before it.
     """
 
     n_goal_ik: int = 3
@@ -175,3 +178,4 @@ class SeederConfig:
     lazy_iterations: int = 60
     resolution: float | None = None
     repair: RepairConfig = field(default_factory=RepairConfig)
+    seed: int = 0

@@ -68,7 +68,7 @@ class Connector:
         self.distal = distal
         self.tree = cKDTree(roadmap.nodes)
         self.nearest = NearestNodes(roadmap.nodes)
-        self.rng = np.random.default_rng(0)
+        self.rng = np.random.default_rng(config.seed)
 
     def _motions(self, Q0: Array, Q1: Array) -> NDArray[np.bool_]:
         return self.world.fast.motions_valid(Q0, Q1, self.resolution)
@@ -102,6 +102,7 @@ class Connector:
         there is none (the roadmap failure). ``last_resorts`` False skips the tree and the
         wide search (for a configuration the query can do without). No attempt starts, and
         the tree stops growing, after ``deadline`` (a ``time.perf_counter()`` value, s)."""
+        self.rng = np.random.default_rng(self.config.seed)   # the same q, the same answer
         found = [Connection(n, c, q[:0].reshape(0, len(q)), "direct")
                  for n, c in self.direct(q, self.config.connect_candidates,
                                          deadline=deadline)]
