@@ -25,7 +25,7 @@ result = planner.plan(q_start, chekhov.Goal.pose(world.robot.compute_ee_pose(q_r
 traj = result.trajectory
 assert traj is not None, result.status
 print(f"{result.status}: {traj.duration:.2f} s, {traj.length:.2f} rad, timed by "
-      f"{result.info['timing_method']} in {result.timing_s['time_parameterize'] * 1e3:.1f} ms")
+      f"{result.info['timing_method']} in {result.info['time_parameterize_s'] * 1e3:.1f} ms")
 
 t = np.linspace(0.0, traj.duration, 1000)
 q, qd, _ = traj.sample(t)

@@ -258,14 +258,14 @@ def test_a_certified_polyline_timed_and_sampled_every_ms_is_exactly_free(world_o
 
 @pytest.mark.parametrize("planner_name", ["Roadmap+TrajOpt", "RRTConnect"])
 def test_a_planners_timed_answer_is_exactly_free_when_sampled_densely(world_of, planner_name):
-    """plan() with timing set: the trajectory starts at the start and ends at the path's end,
-    respects the robot's limits, and its samples every 2 ms — not its knots — are collision-free
-    by the exact checker."""
+    """plan() times every answer by default: the trajectory starts at the start and ends at the
+    path's end, respects the robot's limits, and its samples every 2 ms — not its knots — are
+    collision-free by the exact checker."""
     world = world_of("tabletop_pole")
     roadmap = build_roadmap(world, RoadmapConfig(n_nodes=150, n_region_nodes=20,
                                                  n_wrist_nodes=60, seed=3))
     planner = make_planner(planner_name, world, roadmap)
-    planner.timing = TimingConfig()
+    assert planner.timing == TimingConfig()      # the default
     from chekhov.bench.cases import generate_cases
     cases = generate_cases(world, 3, seed=9)
     limits = joint_limits(world.robot.velocity_limit, planner.timing)
@@ -309,3 +309,26 @@ def test_a_failed_parameterisation_never_loses_the_answer(world_of, monkeypatch)
     planner.timing = TimingConfig()
     r = planner.plan(q0, Goal.configuration(path[-1]), 2.0)
     assert r.success and r.trajectory is None and "toppra failed" in r.info["timing_error"]
+
+
+def test_an_answer_is_not_timed_when_that_would_break_the_time_limit(world_of):
+    """With less than TIMING_RESERVE_S left after certification, the certified path is the
+    answer without a trajectory, and info says why; plan() returns by its deadline."""
+    import time
+
+    from chekhov.planners.base import TIMING_RESERVE_S
+
+    world = world_of("tabletop_pole")
+    planner = make_planner("TrajOpt", world)
+    Q = world.robot.sample_uniform(np.random.default_rng(8), 200)
+    q0, q1 = Q[world.fast.valid(Q)][:2]
+    goal = Goal.configuration(q0 + 0.05 * (q1 - q0))
+    limit = TIMING_RESERVE_S / 2
+    t = time.perf_counter()
+    r = planner.plan(q0, goal, limit)
+    elapsed = time.perf_counter() - t
+    assert r.success and r.trajectory is None and "not timed" in r.info["timing_error"]
+    assert elapsed <= limit + 0.005
+    planner.timing = None
+    r = planner.plan(q0, goal, 2.0)
+    assert r.success and r.trajectory is None and "timing_error" not in r.info

@@ -36,7 +36,10 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
+import toppra.algorithm  # imported with chekhov (0.26 s), not in a planner's first answer
+import toppra.constraint
 from numpy.typing import NDArray
+from ruckig import InputParameter, Result, Ruckig, Trajectory
 
 from chekhov.errors import TrajectoryError
 from chekhov.trajectory import JointTrajectory, hermite_accelerations
@@ -356,9 +359,6 @@ def _toppra_piece(path: BlendedPolyline, limits: Limits, config: TimingConfig
                   ) -> tuple[Array, Array, Array]:
     """(times (N,) s, positions (N, K) rad, velocities (N, K) rad/s) of the time-optimal
     rest-to-rest motion along ``path``."""
-    import toppra.algorithm
-    import toppra.constraint
-
     grid = path.gridpoints(config.gridpoints)
     constraints = [
         toppra.constraint.JointVelocityConstraint(
@@ -415,7 +415,6 @@ def _concatenate(names: tuple[str, ...], pieces: list[tuple[Array, Array, Array]
 def _ruckig_segments(P: Array, names: tuple[str, ...], limits: Limits,
                      config: TimingConfig) -> JointTrajectory:
     """Rest-to-rest, jerk-limited motion along each straight segment in turn."""
-    from ruckig import InputParameter, Result, Ruckig, Trajectory
 
     pieces = []
     for a, b in itertools.pairwise(P):

@@ -139,11 +139,15 @@ class BenchWorker:
         exact_s = time.perf_counter() - t1
         timed: dict[str, object] = {}
         if path is not None and exact_valid:   # the motion's duration, outside the run's time
-            try:
-                t = timed_trajectory(world, path)
-                timed = {"duration_s": t.trajectory.duration, "timing_method": t.method}
-            except TrajectoryError as e:
-                timed = {"timing_error": str(e)}
+            if r.trajectory is not None:        # the planner timed it (default TimingConfig)
+                timed = {"duration_s": r.trajectory.duration,
+                         "timing_method": str(r.info.get("timing_method", ""))}
+            else:
+                try:
+                    t = timed_trajectory(world, path)
+                    timed = {"duration_s": t.trajectory.duration, "timing_method": t.method}
+                except TrajectoryError as e:
+                    timed = {"timing_error": str(e)}
         seed_path, seed_found = _seed_of(r)
         seed_time = float(r.timing_s["seed"]) if "seed" in r.timing_s else float("nan")
         # TrajOpt's own status string ("converged", "exact_clear", …): the typed result has

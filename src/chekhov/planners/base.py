@@ -27,6 +27,10 @@ from chekhov.timing import TimingConfig
 
 Array = NDArray[np.float64]
 
+TIMING_RESERVE_S = 0.05
+"""s of the time limit that must be left for ``plan()`` to time its answer (toppra and the
+exact re-check of the timed trajectory take 7-32 ms on the built-in scenes' answers)."""
+
 __all__ = [
     "PlanResult",
     "Planner",
@@ -60,9 +64,13 @@ class PlannerBase(ABC):
 
     name: str
     world: World
-    timing: TimingConfig | None = None
-    """Set it (e.g. ``TimingConfig()``) and every success carries its timed trajectory
-    (``PlanResult.trajectory``, made after the certified path, outside the time limit)."""
+    timing: TimingConfig | None = TimingConfig()
+    """How every success's path is timed (``PlanResult.trajectory``, a
+    :class:`~chekhov.trajectory.JointTrajectory` checked exactly like the path): after
+    certification, when at least :data:`TIMING_RESERVE_S` of the time limit is left, so that
+    ``plan()`` still returns by its deadline. Otherwise, or when no parameterisation succeeds,
+    the certified path is the answer without a trajectory and ``info["timing_error"]`` says
+    why. None: never timed."""
 
     def plan(self, q_start: Array, goal: Goal, time_limit_s: float = 10.0, *,
              on_solution: Callable[[Solution], None] | None = None) -> PlanResult:
@@ -86,7 +94,13 @@ class PlannerBase(ABC):
             if on_solution is not None:
                 on_solution(found)
         if self.timing is not None and result.success and result.path is not None:
-            result = self._timed(result, result.path, self.timing)
+            left = query.remaining()
+            if left >= TIMING_RESERVE_S:
+                result = self._timed(result, result.path, self.timing)
+            else:
+                result = replace(result, info={
+                    **result.info, "timing_error": f"not timed: {left * 1e3:.0f} ms of the "
+                    f"time limit left, timing needs {TIMING_RESERVE_S * 1e3:.0f}"})
         return result
 
     def _timed(self, result: PlanResult, path: Array, timing: TimingConfig) -> PlanResult:
@@ -97,9 +111,9 @@ class PlannerBase(ABC):
             timed = timed_trajectory(self.world, path, timing)
         except TrajectoryError as e:
             return replace(result, info={**result.info, "timing_error": str(e)})
-        return replace(result, trajectory=timed.trajectory,
-                       timing_s={**result.timing_s, "time_parameterize": time.perf_counter() - t},
-                       info={**result.info, "timing_method": timed.method})
+        return replace(result, trajectory=timed.trajectory, info={
+            **result.info, "timing_method": timed.method,
+            "time_parameterize_s": time.perf_counter() - t})   # after time_s: not in timing_s
 
     def warmup(self, *, seed: int = 0, time_limit_s: float = 1.0) -> float:
         """Do once what a first query would (compile or load the numba kernels, fill caches):

@@ -78,6 +78,8 @@ class SeededTrajOpt(PlannerBase):
                  config: TrajOptConfig | None = None) -> None:
         self.world = world
         self.seed_planner = seed_planner
+        if isinstance(seed_planner, PlannerBase):
+            seed_planner.timing = None   # its path is a seed: only the final answer is timed
         self.config = config if config is not None else TrajOptConfig()
         self.name = f"{seed_planner.name}+TrajOpt"
         self._distances = TrajectoryDistances(world.fast)
