@@ -223,11 +223,12 @@ class RoadmapTrajOpt(PlannerBase):
         t = time.perf_counter()
         found = self.seeder.seeds(query.q_start, query.goal, self.config.goal_routes,
                                   deadline=stop)
-        paths = [self._shortcut(f.path, query) for f in found[1:] if f.path is not None]
+        # every route (with more goal IK solutions the first may differ from the first answer's)
+        paths = [self._shortcut(f.path, query) for f in found if f.path is not None]
         best = min(paths, key=path_length, default=None)
         run.report(Stage.ROUTES, PlanStatus.SOLVED if best is not None else
                    PlanStatus.of(found[0].status), time.perf_counter() - t, best,
-                   {"routes": len(paths) + 1})
+                   {"routes": len(paths)})
         if best is not None and path_length(best) < path_length(seed) - 1e-9:
             run.offer(best, Stage.ROUTES, seed=best, info={"roadmap_seed": best})
             return best
