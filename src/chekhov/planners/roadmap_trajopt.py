@@ -59,9 +59,9 @@ class RoadmapTrajOptConfig:
             with ≥ 23% (each loss ~40 ms).
         simplify_rounds: rounds of shortcuts between any two points of the seed (batches of
             16 random pairs, the best free one spliced in; 0: none) before TrajOpt.
-        improve_time_s: s after the first certified answer during which improvements
-            (straight-line TrajOpt, TrajOpt from the seed) may still start; the call returns
-            when they end (never after its time limit).
+        improve_time_s: s after the first certified answer by which the improvements (more
+            routes, partial shortcuts, straight-line TrajOpt, TrajOpt from the seed) end:
+            each is given what is left of it (and never more than the time limit).
     """
 
     trajopt: TrajOptConfig = field(default_factory=TrajOptConfig)
@@ -104,13 +104,15 @@ class RoadmapTrajOpt(PlannerBase):
        every route ("no_path"), ``repair`` grows a bidirectional tree that connects into the
        roadmap (:mod:`chekhov.roadmap.repair`) until the time limit: the query fails only
        when time runs out.
-    2. **Improvements**, started within ``improve_time_s`` of the first answer and never past
-       the time limit, each offered and kept when certified and shorter: TrajOpt from a
-       straight line to the IK solution nearest the start (``straight_line_first``; only when
-       the first answer is longer than ``straight_line_ratio`` times the straight line, or
-       when there is none, then for up to ``fallback_time_s``), else TrajOpt from the
-       shortcut seed (``retry``: once more towards the seed's own end configuration when the
-       goal pose lost to the collision terms).
+    2. **Improvements**, ending ``improve_time_s`` after the first answer and never past the
+       time limit, each offered and kept when certified and shorter: routes to more goal IK
+       solutions (``goal_routes``), shortcuts between any two points (``simplify_rounds``),
+       TrajOpt from a straight line to the IK solution nearest the start
+       (``straight_line_first``; only when the first answer is longer than
+       ``straight_line_ratio`` times the line and at most ``straight_line_max_blocked`` of it
+       collides, or when there is no answer, then for up to ``fallback_time_s``), else
+       TrajOpt from the simplified seed (once more towards the seed's own end configuration
+       when the goal pose lost to the collision terms).
 
     ``result.solutions`` lists every certified answer with the time it came
     (``result.first_solution_s``); ``result.seed_from`` is the stage of the final answer's
