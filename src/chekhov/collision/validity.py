@@ -42,7 +42,7 @@ from chekhov.collision.codes import (
     VALID,
 )
 from chekhov.collision.gjk import convex_collide
-from chekhov.collision.kernels import grid_classify, signed_distance
+from chekhov.collision.kernels import grid_classify, signed_distance, transform_points
 from chekhov.robot.chain_kinematics import chain_fk_arrays
 
 
@@ -103,15 +103,6 @@ def _centers(Rb, pb, sj, sc, a, b, cw):  # pragma: no cover - compiled
         for x in range(3):
             cw[i, x] = (Rb[j, x, 0] * sc[i, 0] + Rb[j, x, 1] * sc[i, 1] + Rb[j, x, 2] * sc[i, 2]
                         + pb[j, x])
-
-
-@njit(cache=True, inline="always")
-def _group_centres(Rb, pb, gc, gj, gw):  # pragma: no cover - compiled
-    for g in range(gj.shape[0]):
-        j = gj[g]
-        for a in range(3):
-            gw[g, a] = (Rb[j, a, 0] * gc[g, 0] + Rb[j, a, 1] * gc[g, 1]
-                        + Rb[j, a, 2] * gc[g, 2] + pb[j, a])
 
 
 @njit(cache=True, inline="always")
@@ -197,7 +188,7 @@ def collisions(Q, world, work, out, stop):  # pragma: no cover - compiled
 
     def collides(q):
         chain_fk_arrays(q, parent, R0, p0, axis, Rb, pb)
-        _group_centres(Rb, pb, gc, gj, gw)
+        transform_points(Rb, pb, gj, gc, gw)
         G = gr.shape[0]
         for g in range(G):
             done[g] = False
@@ -411,7 +402,7 @@ def group_block_rates(Q, chain, groups, grids):  # pragma: no cover - compiled
     rate = np.zeros(G)
     for i in range(Q.shape[0]):
         chain_fk_arrays(Q[i], parent, R0, p0, axis, Rb, pb)
-        _group_centres(Rb, pb, gc, gj, gw)
+        transform_points(Rb, pb, gj, gc, gw)
         for g in range(G):
             blocked = grid_classify(origin, ihc, hc, delta, Vc, 0, gw[g], gr[g]) != VALID
             if not blocked and gfix[g] >= 0:
