@@ -80,11 +80,12 @@ class RoadmapTrajOptConfig:
     simplify_rounds: int = 8
 
     def __post_init__(self) -> None:
-        for name in ("straight_line_time_s", "fallback_time_s", "improve_time_s",
-                     "straight_line_ratio", "straight_line_max_blocked"):
+        for name, unit in (("straight_line_time_s", " of s"), ("fallback_time_s", " of s"),
+                           ("improve_time_s", " of s"), ("straight_line_ratio", ""),
+                           ("straight_line_max_blocked", "")):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and v >= 0):
-                raise ChekhovError(f"RoadmapTrajOptConfig.{name}: must be a number of s >= 0, "
+                raise ChekhovError(f"RoadmapTrajOptConfig.{name}: must be a number{unit} >= 0, "
                                    f"got {v!r}")
         if not (isinstance(self.goal_routes, int) and self.goal_routes >= 1):
             raise ChekhovError(f"RoadmapTrajOptConfig.goal_routes: must be an integer >= 1, "
