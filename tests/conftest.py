@@ -22,3 +22,13 @@ def world_of(worlds):
 @pytest.fixture()
 def rng() -> np.random.Generator:
     return np.random.default_rng(1234)
+
+
+@pytest.fixture(scope="module")
+def bench_dir(tmp_path_factory):
+    """A directory of the test module's own, with CHEKHOV_CACHE (where generated case files
+    go) inside it for as long as the module runs."""
+    d = tmp_path_factory.mktemp("bench")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("CHEKHOV_CACHE", str(d / "cache"))
+        yield d

@@ -30,15 +30,8 @@ PLANNERS = ("Roadmap+TrajOpt", "TrajOpt", "RRTConnect")
 
 
 @pytest.fixture(scope="module")
-def tmp(tmp_path_factory):
-    d = tmp_path_factory.mktemp("bench")
-    old = os.environ.get("CHEKHOV_CACHE")
-    os.environ["CHEKHOV_CACHE"] = str(d / "cache")   # generated cases go here
-    yield d
-    if old is None:
-        os.environ.pop("CHEKHOV_CACHE", None)
-    else:
-        os.environ["CHEKHOV_CACHE"] = old
+def tmp(bench_dir):
+    return bench_dir   # generated cases go to bench_dir / "cache"
 
 
 def config(tmp, n=3, planners=PLANNERS, **kw) -> BenchConfig:

@@ -5,7 +5,6 @@ resumes as the random family."""
 
 import itertools
 import json
-import os
 import sqlite3
 
 import pytest
@@ -23,15 +22,8 @@ N = 2
 
 
 @pytest.fixture(scope="module")
-def tmp(tmp_path_factory):
-    d = tmp_path_factory.mktemp("family")
-    old = os.environ.get("CHEKHOV_CACHE")
-    os.environ["CHEKHOV_CACHE"] = str(d / "cache")   # generated cases go here
-    yield d
-    if old is None:
-        os.environ.pop("CHEKHOV_CACHE", None)
-    else:
-        os.environ["CHEKHOV_CACHE"] = old
+def tmp(bench_dir):
+    return bench_dir   # generated cases go to bench_dir / "cache"
 
 
 @pytest.fixture(scope="module")

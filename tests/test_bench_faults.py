@@ -27,18 +27,11 @@ SCENE = "tabletop_pole"
 
 
 @pytest.fixture(scope="module")
-def cache(tmp_path_factory):
+def cache(bench_dir):
     """A case cache of its own (CHEKHOV_CACHE) with the scene's first 16 cases generated, so
     concurrent processes only read it."""
-    d = tmp_path_factory.mktemp("faults")
-    old = os.environ.get("CHEKHOV_CACHE")
-    os.environ["CHEKHOV_CACHE"] = str(d / "cache")
     cached_solvable_cases(World.load(SCENE), 16, 0)
-    yield d
-    if old is None:
-        os.environ.pop("CHEKHOV_CACHE", None)
-    else:
-        os.environ["CHEKHOV_CACHE"] = old
+    return bench_dir
 
 
 def config(n=3, planners=("RRTConnect",), **kw) -> BenchConfig:
