@@ -6,7 +6,15 @@ import itertools
 import numpy as np
 import pytest
 
-from chekhov import OmplPlanner, PlanResult, PlanStatus, SeededTrajOpt, Stage, TrajOptPlanner
+from chekhov import (
+    Goal,
+    OmplPlanner,
+    PlanResult,
+    PlanStatus,
+    SeededTrajOpt,
+    Stage,
+    TrajOptPlanner,
+)
 from chekhov.bench.cases import generate_cases
 from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt, RoadmapTrajOptConfig
 from chekhov.roadmap.build import build_roadmap
@@ -126,3 +134,26 @@ def test_warmup_plans_once_and_says_how_long(world, roadmap):
     planner = RoadmapTrajOpt(world, roadmap)
     t = planner.warmup(seed=1, time_limit_s=0.5)
     assert 0.0 < t < 10.0
+
+
+def test_a_seed_that_fails_its_certification_is_a_failure_with_that_reason(world, cases,
+                                                                         roadmap):
+    """A roadmap 'solved' whose path misses the goal, or leaves the joint limits, with nothing
+    to rescue it: the answer is a failure with the failed check's status, never 'solved'."""
+    from chekhov.roadmap.seeder import SeedResult
+
+    planner = RoadmapTrajOpt(world, roadmap, RoadmapTrajOptConfig(
+        straight_line_first=False, straight_line_fallback=False, shortcut=False,
+        simplify_rounds=0, goal_routes=1))
+    q0, qg = cases.q_start[0], cases.q_goal[0]
+    outside = (q0 + qg) / 2
+    outside[3] = world.robot.upper[3] + 0.3
+    for path, goal, status in ((np.vstack([q0, q0 + 0.01]), cases.goal(0),
+                                PlanStatus.GOAL_UNMET),
+                               (np.vstack([q0, outside, qg]), Goal.configuration(qg),
+                                PlanStatus.JOINT_LIMITS)):
+        planner.seeder.seeds = lambda q, g, n, deadline=np.inf, p=path: [SeedResult(
+            True, "solved", p, np.empty(0, dtype=np.int64), p[-1], {"total": 0.0}, {})]
+        planner._optimise = lambda *a, **k: False          # no TrajOpt to rescue it
+        r = planner.plan(q0, goal, 2.0)
+        assert not r.success and r.path is None and r.status is status, r.info

@@ -48,7 +48,7 @@ class AnytimeRun:
         self.best_certificate: PathCertificate | None = None
         self.best_seed: Array | None = None
         self.best_info: dict[str, object] = {}
-        self.rejected: list[tuple[Stage, str]] = []
+        self.rejected: list[tuple[Stage, PlanStatus, str]] = []
         self._candidate: tuple[Array, Stage, Array | None, dict[str, object], float] | None = None
 
     @property
@@ -92,7 +92,7 @@ class AnytimeRun:
         why, certificate = check_path(self.world, self.query, path, certificate)
         self.timing["offers"] = self.timing.get("offers", 0.0) + time.perf_counter() - t
         if why is not None:
-            self.rejected.append((stage, f"{why[0].value}: {why[1]}"))
+            self.rejected.append((stage, why[0], why[1]))
             return False
         found = Solution(np.asarray(path), time.perf_counter() - self.query.t0, stage, length)
         self.solutions.append(found)
@@ -104,18 +104,23 @@ class AnytimeRun:
 
     def result(self, failure: PlanStatus, info: dict[str, object] | None = None,
                seed_from: Stage | None = None) -> PlanResult:
-        """The best solution as a success, else a failure with status ``failure`` (a waiting
-        candidate is certified first)."""
+        """The best solution as a success, else a failure with status ``failure`` — or, when
+        ``failure`` says SOLVED because a stage found paths that all failed their
+        certification, the first failed check's status (a waiting candidate is certified
+        first)."""
         if self._candidate is not None:
             path, stage, seed, cand_info, length = self._candidate
             self._candidate = None
             self._certify(path, stage, seed, None, cand_info, length)
         info = {**(info or {}), **self.best_info}
         if self.rejected:
-            info["rejected_offers"] = "; ".join(f"{s}: {w}" for s, w in self.rejected)
+            info["rejected_offers"] = "; ".join(f"{stage}: {status.value}: {why}"
+                                                for stage, status, why in self.rejected)
         best = self.best
         elapsed = time.perf_counter() - self.query.t0
         if best is None:
+            if failure is PlanStatus.SOLVED:
+                failure = self.rejected[0][1] if self.rejected else PlanStatus.INFEASIBLE
             return PlanResult(False, None, failure, elapsed, self.timing, info=info,
                               stages=tuple(self.stages), seed_from=seed_from)
         return PlanResult(True, best.path, PlanStatus.SOLVED, elapsed, self.timing,
