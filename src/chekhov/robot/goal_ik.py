@@ -119,7 +119,9 @@ class GoalResolver:
         first = [np.asarray(near, dtype=float)[None]] if near is not None else []
         if seeds is not None and len(seeds):
             first.append(np.asarray(seeds, dtype=float))
-        Q, tried = self._compiled(T, first, n, deadline)
+        # a start alone rarely converges to n solutions: without the caller's seeds, the first
+        # round also gets a random batch (as the straight-line TrajOpt's IK always had)
+        Q, tried = self._compiled(T, first, n, deadline, pad=seeds is None or not len(seeds))
         if len(Q) == 0 and self.config.thorough and time.perf_counter() < deadline:
             Q, why = self._thorough(T, n, near, deadline)
             if len(Q) == 0:
@@ -142,25 +144,24 @@ class GoalResolver:
     def _none(self, reason: str) -> GoalConfigurations:
         return GoalConfigurations(np.empty((0, self.robot.dof)), reason)
 
-    def _compiled(self, T: Array, first: list[Array], n: int, deadline: float
-                  ) -> tuple[Array, int]:
-        """Valid solutions from the caller's seeds, then random rounds; (solutions, seeds
-        tried)."""
+    def _compiled(self, T: Array, first: list[Array], n: int, deadline: float,
+                  pad: bool = False) -> tuple[Array, int]:
+        """Valid solutions from the caller's seeds (with ``pad``, and a random batch), then
+        random rounds; (solutions, seeds tried)."""
         if self.kinematics is None:
             return np.empty((0, self.robot.dof)), 0
         cfg = self.config
-        rng: np.random.Generator | None = None
+        rng = np.random.default_rng(cfg.seed)
         rounds = [np.vstack(first)] if first else []
+        if rounds and pad:
+            rounds[0] = np.vstack([rounds[0], self.robot.sample_uniform(rng, cfg.random_seeds)])
         tried = 0
         sols = np.empty((0, self.robot.dof))
         for r in range(len(rounds) + cfg.random_rounds):
             if r and time.perf_counter() >= deadline:
                 break
-            if r < len(rounds):
-                S = rounds[r]
-            else:
-                rng = rng if rng is not None else np.random.default_rng(cfg.seed)
-                S = self.robot.sample_uniform(rng, cfg.random_seeds)
+            S = (rounds[r] if r < len(rounds)
+                 else self.robot.sample_uniform(rng, cfg.random_seeds))
             tried += len(S)
             Q, ok = self.kinematics.solve(T, S, stop_after=n)
             Q = Q[ok]
