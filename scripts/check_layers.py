@@ -17,9 +17,10 @@ Layers (docs/architecture.md), lowest first; a module may import from its own la
     2  world.py, cases.py
     3  trajopt/, roadmap/
     4  planners/
-    5  bench/, viewer/ (and neither imports the other)
-    6  cli/
-    7  chekhov/__init__.py (the flat public API)
+    5  execute/ (the reactive executive)
+    6  bench/, viewer/ (and neither imports the other)
+    7  cli/
+    8  chekhov/__init__.py (the flat public API)
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ SRC = Path(__file__).resolve().parents[1] / "src"
 PACKAGE = "chekhov"
 # first component under chekhov (a subpackage or a top-level module) -> layer
 LAYERS = {"collision": 1, "world": 2, "cases": 2, "trajopt": 3, "roadmap": 3, "planners": 4,
-          "bench": 5, "viewer": 5, "cli": 6}
+          "execute": 5, "bench": 6, "viewer": 6, "cli": 7}
 # same layer, yet neither may import the other
 SIDEWAYS = {("bench", "viewer"), ("viewer", "bench")}
 
@@ -119,7 +120,7 @@ def component(module: str) -> str:
 def layer(module: str) -> int:
     """The layer of a module (see the module docstring)."""
     if module == PACKAGE:
-        return 7
+        return 8
     return LAYERS.get(component(module), 0)
 
 

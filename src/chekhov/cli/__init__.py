@@ -4,6 +4,7 @@
     chekhov show SCENE [--q Q...] [--out scene.png]
                                            picture of a scene with the robot at q
     chekhov demo [--out DIR]               the main job (see README)
+    chekhov react [--scenes ...] [--json]  the reactive executive's scenario benchmark
 
 Exit status: 0 done, 2 bad arguments or input files (argparse's usage errors too), 1 the
 system refused (an OSError: disk full, permissions …), 130 interrupted (Ctrl-C), 141 the
@@ -20,6 +21,7 @@ import sys
 from chekhov.cli import (
     bench_commands,
     cases_commands,
+    react_commands,
     roadmap_commands,
     scene_commands,
     view_commands,
@@ -27,7 +29,7 @@ from chekhov.cli import (
 from chekhov.errors import ChekhovError
 
 COMMAND_GROUPS = [scene_commands, cases_commands, roadmap_commands, view_commands,
-                  bench_commands]
+                  bench_commands, react_commands]
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,0 +1,179 @@
+"""The scenario benchmark behind ``chekhov react`` (:func:`react_scene`): pick-and-place
+episodes with a forearm sweeping across, a goal change and a kick each
+(:mod:`~chekhov.execute.script`), run on the simulated clock, judged after the fact
+(:mod:`~chekhov.execute.evaluate`), summed up in one JSON-able dict per scene and planner.
+
+Each episode first runs undisturbed (the same start, goal and executive, nothing happening):
+its duration times the script and is the reference of ``time_to_goal_ratio``. The scripts
+come from the first planner's undisturbed runs, so every planner gets the same episodes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from chekhov.execute.evaluate import EpisodeCheck, evaluate_episode
+from chekhov.execute.executor import Executor, ExecutorConfig
+from chekhov.execute.script import EpisodeScript, make_script, start_and_goal
+from chekhov.execute.simulate import EpisodeRecord, SimConfig, run_episode
+from chekhov.execute.worker import InlineWorker
+from chekhov.planners.base import Planner, PlannerBase
+from chekhov.planners.registry import canonical_planner_name, make_planner
+from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt
+from chekhov.roadmap.io import load_or_build_roadmap
+from chekhov.timing import joint_limits
+from chekhov.world import World
+
+Array = NDArray[np.float64]
+
+REACT_IMPROVE_S = 0.005
+"""s, Roadmap + TrajOpt's improvement time in the executive: a replan answers with its first
+certified path (shortened) and little more; the budget is the reaction time."""
+
+
+@dataclass(frozen=True)
+class ReactConfig:
+    """A benchmark run: ``episodes`` per scene from stream ``seed``, the executive's and the
+    simulation's settings; an episode's deadline is ``deadline_factor`` × its undisturbed
+    duration + ``deadline_extra_s`` (s)."""
+
+    episodes: int = 20
+    seed: int = 0
+    planners: tuple[str, ...] = ("Roadmap+TrajOpt",)
+    executor: ExecutorConfig = field(default_factory=ExecutorConfig)
+    sim: SimConfig = field(default_factory=SimConfig)
+    deadline_factor: float = 3.0
+    deadline_extra_s: float = 4.0
+    undisturbed_limit_s: float = 30.0
+
+
+@dataclass(frozen=True, eq=False)
+class EpisodeResult:
+    """One episode of one planner: its script, record, verdict, and this planner's
+    undisturbed run's duration (s; None when that run did not reach the goal). An episode is
+    *reachable* when the first planner's undisturbed run reached its goal (the goal changes
+    to another reachable pre-grasp and the forearm leaves): only those are run."""
+
+    script: EpisodeScript
+    record: EpisodeRecord
+    check: EpisodeCheck
+    undisturbed_s: float | None
+
+
+def executive_planner(name: str, world: World) -> Planner:
+    """The planner ``name`` as the executive uses it: untimed (the executive times and joins
+    the path itself) and, for Roadmap + TrajOpt, with :data:`REACT_IMPROVE_S`."""
+    name = canonical_planner_name(name)
+    planner = make_planner(name, world, lambda: load_or_build_roadmap(world))
+    if isinstance(planner, RoadmapTrajOpt):
+        planner.config = replace(planner.config, improve_time_s=REACT_IMPROVE_S)
+    if isinstance(planner, PlannerBase):
+        planner.timing = None
+    return planner
+
+
+def run_one(world: World, planner: Planner, script: EpisodeScript, deadline_s: float,
+            config: ReactConfig) -> EpisodeRecord:
+    """Run one script with a fresh executive."""
+    worker = InlineWorker(world, planner, config.executor.timing)
+    executor = Executor(world, worker, script.goal, config.executor)
+    return run_episode(world, executor, script, deadline_s, config.sim)
+
+
+def react_scene(world: World, config: ReactConfig,
+                progress: Callable[[str], None] | None = None) -> list[dict[str, object]]:
+    """Every episode of ``config`` in ``world`` for each planner; one summary per planner."""
+    planners = [executive_planner(n, world) for n in config.planners]
+    scripts: list[tuple[EpisodeScript, float] | None] = []
+    for i in range(config.episodes):
+        q0, goal = start_and_goal(world, config.seed, i)
+        plain = EpisodeScript(i, q0, goal, "")
+        rec = run_one(world, planners[0], plain, config.undisturbed_limit_s, config)
+        if rec.t_reached is None:
+            scripts.append(None)
+            continue
+        ee = world.robot.compute_ee_poses(rec.q)[:, :3, 3]
+        scripts.append((make_script(world, config.seed, i, rec.t_reached, ee), rec.t_reached))
+    out = []
+    for planner in planners:
+        results: list[EpisodeResult | None] = []
+        for i, entry in enumerate(scripts):
+            if entry is None:
+                results.append(None)
+                continue
+            results.append(_episode(world, planner, entry[0], config))
+            if progress is not None:
+                progress(f"{world.scene.name} {planner.name} episode {i + 1}/"
+                         f"{config.episodes}")
+        out.append(summarize(world.scene.name, planner.name, results, config))
+    return out
+
+
+def _episode(world: World, planner: Planner, script: EpisodeScript, config: ReactConfig
+             ) -> EpisodeResult:
+    plain = run_one(world, planner, script.undisturbed(), config.undisturbed_limit_s, config)
+    t_plain = plain.t_reached
+    deadline = config.deadline_factor * (t_plain or config.undisturbed_limit_s / 3) + \
+        config.deadline_extra_s
+    rec = run_one(world, planner, script, deadline, config)
+    ex = config.executor
+    window = config.sim.sensor_period_s + config.sim.sensor_latency_s + ex.planning_budget_s
+    limits = joint_limits(world.robot.velocity_limit, ex.timing)
+    return EpisodeResult(script, rec, evaluate_episode(world, rec, limits, window), t_plain)
+
+
+def _pct(x: list[float], q: float) -> float | None:
+    return float(np.percentile(x, q)) if x else None
+
+
+def summarize(scene: str, planner: str, results: list[EpisodeResult | None],
+              config: ReactConfig) -> dict[str, object]:
+    """The JSON object of one scene and planner (keys: see ``chekhov react --help``)."""
+    done = [r for r in results if r is not None]
+    success = [r for r in done if r.record.reached]
+    reacted = [1000 * (x.t_reacted - x.t_observed) for r in done for x in r.record.reactions
+               if x.t_reacted is not None]
+    resolved = [1000 * (x.t_resolved - x.t_observed) for r in done for x in r.record.reactions
+                if x.t_resolved is not None]
+    unanswered = sum(1 for r in done for x in r.record.reactions if x.t_reacted is None)
+    mins = [r.check.min_clearance_m for r in done if np.isfinite(r.check.min_clearance_m)]
+    ratios = [r.record.t_reached / r.undisturbed_s for r in success
+              if r.record.t_reached is not None and r.undisturbed_s]
+    walls = [1000 * w for r in done for w in r.record.counters.planning_wall_s]
+    collided = [r for r in done if r.check.collision]
+    return {
+        "scene": scene, "planner": planner, "episodes": len(results),
+        "success_rate": len(success) / len(done) if done else None,
+        "reachable_episodes": len(done),
+        "unreachable_episodes": len(results) - len(done),
+        "unreachable_why": "the first planner's undisturbed run did not reach the goal"
+        if len(results) > len(done) else "",
+        "undisturbed_failures": sum(r.undisturbed_s is None for r in done),
+        "collision_episodes": len(collided),
+        "unavoidable_collision_episodes": sum(r.check.unavoidable for r in collided),
+        "min_clearance_m": min(mins) if mins else None,
+        "p5_clearance_m": _pct(mins, 5),
+        "reaction_latency_ms_p50": _pct(reacted, 50),
+        "reaction_latency_ms_p95": _pct(reacted, 95),
+        "reaction_latency_ms_p99": _pct(reacted, 99),
+        "resolve_latency_ms_p50": _pct(resolved, 50),
+        "resolve_latency_ms_p95": _pct(resolved, 95),
+        "resolve_latency_ms_p99": _pct(resolved, 99),
+        "disturbances": sum(len(r.record.reactions) for r in done),
+        "unanswered_disturbances": unanswered,
+        "replans_per_episode": float(np.mean([r.record.counters.replans for r in done]))
+        if done else None,
+        "safe_stops": sum(r.record.counters.safe_stops for r in done),
+        "dodges": sum(r.record.counters.dodges for r in done),
+        "failed_plans": sum(r.record.counters.failed_plans for r in done),
+        "late_plans": sum(r.record.counters.late_plans for r in done),
+        "planning_wall_ms_p50": _pct(walls, 50), "planning_wall_ms_p95": _pct(walls, 95),
+        "time_to_goal_ratio": float(np.median(ratios)) if ratios else None,
+        "limit_violations": sum(r.check.limit_violations for r in done),
+        "seed": config.seed, "control_hz": round(1 / config.executor.control_dt_s),
+        "planning_budget_ms": 1000 * config.executor.planning_budget_s,
+    }

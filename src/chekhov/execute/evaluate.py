@@ -1,0 +1,161 @@
+"""An executed episode judged after the fact, by other means than the executive's own checks
+(:func:`evaluate_episode`):
+
+* collision: every recorded configuration (control rate) with the exact checker (coal on the
+  URDF meshes) against the scene and each moving obstacle at its **true** pose at that instant;
+* clearance: coal distances from the robot's moving geometry to the moving obstacles;
+* limits: positions within the joint limits; velocities from finite differences of the
+  executed positions and accelerations from finite differences of the commanded velocities
+  (both exact bounds by the mean value theorem), ticks displaced by a kick left out;
+* unavoidable contact (only for an episode with a collision): from the executed state one
+  reaction window (sensor period + latency + planning budget) before the first contact,
+  :data:`ESCAPES` random motions within the limits (each joint at a constant acceleration
+  drawn within its limit, velocities clipped) are tried against the obstacles' true motion
+  until :data:`ESCAPE_AFTER_S` after the contact; none collision-free means no motion within
+  the limits could have avoided it.
+
+Units: s, rad, m.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import coal
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from chekhov.collision.exact import ExactChecker, coal_shape
+from chekhov.execute.obstacles import MovingObstacle
+from chekhov.execute.simulate import EpisodeRecord
+from chekhov.timing import Limits
+from chekhov.world import World
+
+Array = NDArray[np.float64]
+
+ESCAPES = 256
+ESCAPE_AFTER_S = 0.3
+FAR = np.array([0.0, 0.0, -100.0])
+REL_TOL = 1e-6
+
+
+@dataclass(frozen=True)
+class EpisodeCheck:
+    """The after-the-fact verdict: ``collision`` (any recorded configuration in collision),
+    ``first_contact_s``, ``min_clearance_m`` to the moving obstacles (inf when none came),
+    the per-tick clearances (N,) m, ``limit_violations`` (ticks breaking a limit) and
+    ``unavoidable`` (a collision no motion within the limits could have avoided)."""
+
+    collision: bool
+    first_contact_s: float | None
+    min_clearance_m: float
+    clearances: Array
+    limit_violations: int
+    unavoidable: bool
+
+
+class TrueWorld:
+    """The scene plus the episode's moving obstacles at their true poses, for coal."""
+
+    def __init__(self, world: World, moving: tuple[MovingObstacle, ...]) -> None:
+        self.robot, self.moving = world.robot, moving
+        self.checker = ExactChecker(world.robot, world.scene)
+        for m in moving:
+            self.checker.add_obstacle(f"true:{m.name}", m.shape, _far())
+        self._geoms = [(coal_shape(m.shape), m) for m in moving]
+        self._robot_geoms = [(i, self.robot.collision_model.geometryObjects[i])
+                             for i in self.robot.moving_geometries]
+        self._data = self.robot.model.createData()
+        self._gdata = pin.GeometryData(self.robot.collision_model)
+
+    def at(self, t: float) -> None:
+        for m in self.moving:
+            self.checker.move_obstacle(f"true:{m.name}", m.pose(t) if m.present(t) else _far())
+
+    def collides(self, q: Array, t: float) -> bool:
+        self.at(t)
+        return not self.checker.is_valid(q)
+
+    def clearance(self, q: Array, t: float) -> float:
+        """m, the distance from the robot's moving geometry to the present moving obstacles."""
+        present = [(g, m) for g, m in self._geoms if m.present(t)]
+        if not present:
+            return float("inf")
+        pin.updateGeometryPlacements(self.robot.model, self._data, self.robot.collision_model,
+                                     self._gdata, np.asarray(q, dtype=float))
+        best = float("inf")
+        req, res = coal.DistanceRequest(), coal.DistanceResult()
+        for g, m in present:
+            T = m.pose(t)
+            tf_o = coal.Transform3s(T[:3, :3], T[:3, 3])
+            for i, go in self._robot_geoms:
+                M = self._gdata.oMg[i]
+                res.clear()
+                d = coal.distance(go.geometry, coal.Transform3s(M.rotation, M.translation),
+                                  g, tf_o, req, res)
+                best = min(best, float(d))
+        return best
+
+
+def _far() -> Array:
+    T = np.eye(4)
+    T[:3, 3] = FAR
+    return T
+
+
+def evaluate_episode(world: World, record: EpisodeRecord, limits: Limits,
+                     window_s: float) -> EpisodeCheck:
+    """Judge ``record`` (module docstring); ``window_s``: the reaction window (s)."""
+    truth = TrueWorld(world, record.obstacles)
+    hits = [i for i, (t, q) in enumerate(zip(record.times, record.q, strict=True))
+            if truth.collides(q, float(t))]
+    clear = np.array([truth.clearance(q, float(t))
+                      for t, q in zip(record.times, record.q, strict=True)])
+    first = float(record.times[hits[0]]) if hits else None
+    unavoidable = bool(hits) and not _escapable(truth, record, hits[0], limits, window_s)
+    return EpisodeCheck(bool(hits), first, float(clear.min(initial=np.inf)), clear,
+                        limit_violations(world, record, limits), unavoidable)
+
+
+def limit_violations(world: World, record: EpisodeRecord, limits: Limits) -> int:
+    """Ticks breaking a position, velocity or acceleration limit (module docstring)."""
+    if len(record.times) < 2:
+        return 0
+    bad = ~world.robot.within_limits(record.q, tol=1e-6)
+    dt = np.diff(record.times)[:, None]
+    v = np.abs(np.diff(record.q, axis=0)) / dt
+    a = np.abs(np.diff(record.qd, axis=0)) / dt
+    kicked = record.kicked[1:]
+    v_bad = (v > limits.velocity * (1 + REL_TOL) + 1e-9).any(axis=1) & ~kicked
+    a_bad = (a > limits.acceleration * (1 + REL_TOL) + 1e-9).any(axis=1)
+    cmd_bad = ((np.abs(record.qd) > limits.velocity * (1 + REL_TOL) + 1e-9).any(axis=1)
+               | (np.abs(record.qdd) > limits.acceleration * (1 + REL_TOL) + 1e-6).any(axis=1))
+    bad[1:] |= v_bad | a_bad
+    bad |= cmd_bad
+    return int(bad.sum())
+
+
+def _escapable(truth: TrueWorld, record: EpisodeRecord, hit: int, limits: Limits,
+               window_s: float) -> bool:
+    """Whether one of :data:`ESCAPES` random motions within the limits from the state one
+    reaction window before tick ``hit`` stays free until :data:`ESCAPE_AFTER_S` after it."""
+    t_hit = float(record.times[hit])
+    i0 = int(np.searchsorted(record.times, t_hit - window_s))
+    q0, v0 = record.q[i0], record.qd[i0]
+    t0 = float(record.times[i0])
+    ts = np.arange(0.0, t_hit - t0 + ESCAPE_AFTER_S, 0.01)
+    rng = np.random.default_rng(hit)
+    lo, hi = truth.robot.lower, truth.robot.upper
+    for _ in range(ESCAPES):
+        acc = rng.uniform(-1, 1, len(q0)) * limits.acceleration
+        q, v, ok = q0.copy(), v0.copy(), True
+        for k in range(1, len(ts)):
+            v = np.clip(v + acc * 0.01, -limits.velocity, limits.velocity)
+            q = q + v * 0.01
+            if np.any(q < lo) or np.any(q > hi) or truth.collides(q, t0 + float(ts[k])):
+                ok = False
+                break
+        if ok:
+            return True
+    return False

@@ -1,0 +1,448 @@
+"""The reactive executive: :class:`Executor`. Call :meth:`Executor.step` once per control tick
+with what the robot and its sensor report (:class:`Observation`); it returns the state to
+command for the next tick (:class:`Command`).
+
+On every tick it compares the measured position with the last command (a *kick*: the arm was
+displaced), takes a new goal, and on every sensor frame checks the rest of the commanded
+motion against the obstacles' predicted sweep (:mod:`chekhov.execute.obstacles`). A kick is
+answered at once by a Ruckig join back onto the motion when that join is free; a conflict, a
+new goal, or a kick it cannot rejoin asks its :mod:`worker <chekhov.execute.worker>` for a plan
+from the state the motion will be in one planning budget later, and the reply is joined onto
+the motion there (no velocity or acceleration jump). When the conflict is nearer than that
+budget plus the time to stop, the arm brakes along its path at once and the plan starts where
+it stops. Units: s, rad, m.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from chekhov.collision.path_check import exact_path_decision
+from chekhov.execute.motion import (
+    Motion,
+    State,
+    brake_along,
+    hold,
+    join,
+    ruckig_piece,
+    stop_from,
+    stop_time,
+    trajectory_motion,
+)
+from chekhov.execute.obstacles import Obstacles, ObstacleTracks, predicted_obstacles
+from chekhov.execute.worker import PlanReply, PlanRequest, Worker
+from chekhov.planners.certify import goal_error
+from chekhov.planners.query import make_query
+from chekhov.robot.goal import Goal
+from chekhov.timing import Limits, TimingConfig, joint_limits
+from chekhov.world import World
+
+Array = NDArray[np.float64]
+
+
+DODGE_CANDIDATES = 64
+DODGE_RAD = 0.5
+"""rad, the largest joint offset of a dodge's target."""
+WINDOW_S = 0.1
+"""s, the time windows of :meth:`Executor._safe_in_time`."""
+
+
+@dataclass(frozen=True)
+class ExecutorConfig:
+    """How the executive reacts.
+
+    Attributes:
+        control_dt_s: s, the control period (100 Hz).
+        planning_budget_s: s, a replan's time limit; the new motion starts this long (rounded up
+            to ticks) after the request.
+        max_budget_s: s, the budget after failed replans (doubling each time).
+        horizon_s: s, how far ahead the obstacles' motion is predicted.
+        margin_m: m, how much the obstacles are inflated when planning and monitoring.
+        kick_tolerance_rad: rad, a measured position this far from the command is a kick.
+        check_dt_s: s, the time step of the checks along a motion.
+        rejoin_s: s, how far ahead on its motion a kicked arm rejoins it.
+        join_offsets_s: s, where on a new plan's trajectory the join aims, tried in order.
+        timing: how plans are timed: Ruckig, at rest at each waypoint and exactly on the
+            certified polyline (2 ms for a 3-5 waypoint path, durations within ~10% of
+            toppra's with rounded corners, which takes 10-15 ms and then an exact re-check).
+    """
+
+    control_dt_s: float = 0.01
+    planning_budget_s: float = 0.05
+    max_budget_s: float = 0.64
+    horizon_s: float = 0.6
+    margin_m: float = 0.04
+    kick_tolerance_rad: float = 1e-3
+    check_dt_s: float = 0.01
+    rejoin_s: float = 0.25
+    join_offsets_s: tuple[float, ...] = (0.15, 0.3, 0.0)
+    timing: TimingConfig = field(default_factory=lambda: TimingConfig(method="ruckig"))
+
+
+@dataclass(frozen=True, eq=False)
+class Observation:
+    """What the executive gets each tick.
+
+    Attributes:
+        t: s, the clock. q: (K,) rad and qd: (K,) rad/s, the measured state.
+        obstacles: a sensor frame, on the ticks one arrives (name → (shape, T_world_obj)).
+        stamp: s, when that frame was taken (earlier than t by the sensor's latency).
+        goal: a new goal, on the tick it is given.
+    """
+
+    t: float
+    q: Array
+    qd: Array
+    obstacles: Obstacles | None = None
+    stamp: float | None = None
+    goal: Goal | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class Command:
+    """The state to be in at time ``t`` (s): q (K,) rad, qd rad/s, qdd rad/s²; ``mode``: what
+    the motion is doing ("plan", "join", "brake", "rest")."""
+
+    t: float
+    q: Array
+    qd: Array
+    qdd: Array
+    mode: str
+
+
+@dataclass
+class Reaction:
+    """A disturbance and the answer to it: ``kind`` ("obstacle", "goal", "kick"), when it was
+    observed, when the first motion answering it began (``t_reacted``: a brake, a dodge, a
+    rejoin or a new plan) and when a motion to the goal that answers it began
+    (``t_resolved``: a rejoin or a new plan), s; None while none has."""
+
+    kind: str
+    t_observed: float
+    t_reacted: float | None = None
+    t_resolved: float | None = None
+
+
+@dataclass
+class Counters:
+    replans: int = 0
+    failed_plans: int = 0
+    late_plans: int = 0
+    rejoins: int = 0
+    safe_stops: int = 0
+    dodges: int = 0
+    planning_wall_s: list[float] = field(default_factory=list)
+    failures: list[str] = field(default_factory=list)
+
+
+class Executor:
+    """Tracks a goal with the motion it commands, reacting to what each tick reports."""
+
+    def __init__(self, world: World, worker: Worker, goal: Goal,
+                 config: ExecutorConfig | None = None) -> None:
+        self.world, self.worker, self.goal = world, worker, goal
+        self.config = config if config is not None else ExecutorConfig()
+        self.limits: Limits = joint_limits(world.robot.velocity_limit, self.config.timing)
+        self.tracks = ObstacleTracks()
+        self.motion: Motion | None = None
+        self.reactions: list[Reaction] = []
+        self.counters = Counters()
+        self._last: Command | None = None
+        self._need: str | None = "start"
+        self._pending: PlanRequest | None = None
+        self._budget = self.config.planning_budget_s
+        self._token = 0
+        self._seen: Obstacles = {}
+        self._exact_has: Obstacles | None = None
+        self._rng = np.random.default_rng(0)
+
+    # --- the tick ---------------------------------------------------------------------
+    def step(self, obs: Observation) -> Command:
+        """Take one tick's observation; the command for the next tick (t + control_dt_s)."""
+        t, dt = obs.t, self.config.control_dt_s
+        if self.motion is None:
+            self._install(hold(np.asarray(obs.q, dtype=float), t))
+        if obs.goal is not None:
+            self.goal = obs.goal
+            self._disturbed("goal", t)
+        self._check_kick(obs)
+        if obs.obstacles is not None and obs.stamp is not None:
+            self.tracks.update(obs.obstacles, obs.stamp)
+            self._monitor(t)
+        self._poll(t)
+        if self._need is not None and self._pending is None:
+            self._request(t)
+        assert self.motion is not None
+        s = self.motion.sample(t + dt)
+        cmd = Command(t + dt, s.q, s.qd, s.qdd, self.motion.kind_at(t + dt))
+        self._last = cmd
+        return cmd
+
+    @property
+    def done(self) -> bool:
+        """At rest at the end of a motion that meets the goal, nothing pending."""
+        if self.motion is None or self._last is None or self._need or self._pending:
+            return False
+        return self._last.t >= self.motion.t_end and self.meets_goal(self._last.q)
+
+    def meets_goal(self, q: Array) -> bool:
+        query = make_query(self.world.robot, q, self.goal, 1.0)
+        return goal_error(self.world, query, np.asarray(q, dtype=float)) == ""
+
+    # --- what happened ----------------------------------------------------------------
+    def _disturbed(self, kind: str, t: float) -> None:
+        """A new goal or a conflict: whatever was being planned is out of date."""
+        self.reactions.append(Reaction(kind, t))
+        self._cancel()
+        self._need = kind
+
+    def _check_kick(self, obs: Observation) -> None:
+        last = self._last
+        if last is None or self.motion is None:
+            return
+        if float(np.abs(obs.q - last.q).max()) <= self.config.kick_tolerance_rad:
+            return
+        t = obs.t
+        self.reactions.append(Reaction("kick", t))
+        start = State(np.asarray(obs.q, dtype=float), np.asarray(obs.qd, dtype=float), last.qdd)
+        t_back = min(t + self.config.rejoin_s, self.motion.t_end)
+        back = join(start, t, self.motion, t_back, self.limits)
+        if back is not None and self._free(back, t, back.pieces[0].t_end + 0.1):
+            self.counters.rejoins += 1
+            self._install(back)
+            self._resolve(t + self.config.control_dt_s, t)
+            self._react(t + self.config.control_dt_s)
+            if self._pending is not None:        # planned from the motion before the kick
+                self._cancel()
+                self._need = self._need or "retry"
+            return
+        self._cancel()
+        self.counters.safe_stops += 1
+        self._install(stop_from(start, t, self.limits))
+        self._react(t + self.config.control_dt_s)
+        self._need = "kick"
+
+    def _monitor(self, t: float) -> None:
+        """Check the rest of the motion against the predicted obstacles (a sensor frame)."""
+        assert self.motion is not None
+        c = self.config
+        self._seen = predicted_obstacles(self.tracks, t, c.horizon_s, c.margin_m)
+        self.world.fast.set_obstacles(self._seen)
+        t_hit = self._first_conflict(self.motion, t)
+        if t_hit is None:
+            return
+        if not any(r.kind == "obstacle" and r.t_resolved is None for r in self.reactions):
+            self.reactions.append(Reaction("obstacle", t))
+        if self._pending is None:
+            self._need = "obstacle"
+        lead = self._handoff_time(t) - t + stop_time(self.motion.sample(t), self.limits)
+        if t_hit - t <= lead + 2 * c.control_dt_s:
+            self._evade(t)
+
+    def _evade(self, t: float) -> None:
+        """The conflict is too near to wait for a plan: keep a dodge that still holds, else
+        brake along the path if that is free of the predicted motion, else dodge, else brake
+        anyway."""
+        assert self.motion is not None
+        dt = self.config.control_dt_s
+        kind = self.motion.kind_at(t)
+        if kind == "dodge" and self._safe_in_time([self.motion], t).all():
+            return
+        self._cancel()
+        self._need = "obstacle"
+        moving = bool(np.abs(self.motion.sample(t).qd).max() > 1e-6)
+        brake = brake_along(self.motion, t + dt, self.limits) if moving and kind not in (
+            "brake", "dodge") else None
+        if brake is not None and self._safe_in_time([brake], t + dt).all():
+            self._install(brake)
+            self.counters.safe_stops += 1
+        elif self._dodge(t):
+            pass
+        elif brake is not None:
+            self._install(brake)
+            self.counters.safe_stops += 1
+        else:
+            return
+        self._react(t + dt)
+
+    # --- plans ------------------------------------------------------------------------
+    def _handoff_time(self, t: float) -> float:
+        dt = self.config.control_dt_s
+        return t + dt * (1 + math.ceil(self._budget / dt - 1e-9))
+
+    def _request(self, t: float) -> None:
+        assert self.motion is not None
+        t_h = self._handoff_time(t)
+        start = self.motion.sample(t_h)
+        seen = {n: (tr.shape, self.tracks.pose(n, t_h)) for n, tr in self.tracks.tracks.items()}
+        worlds = (self._seen, seen) if self.tracks.tracks else ({},)
+        request = PlanRequest(t, t_h, start, self.goal, worlds, self._budget, self._token)
+        self._pending = request
+        self._need = None
+        self.worker.submit(request)
+        self.world.fast.set_obstacles(self._seen)   # an inline worker planned in this world
+        self._exact_has = None
+
+    def _poll(self, t: float) -> None:
+        req = self._pending
+        if req is None:
+            return
+        reply = self.worker.poll(t)
+        if reply is None:
+            return
+        self._pending = None
+        self.counters.planning_wall_s.append(reply.wall_s)
+        if req.token != self._token or t + self.config.control_dt_s > req.t_handoff + 1e-9:
+            self.counters.late_plans += int(req.token == self._token)
+            self._need = self._need or "retry"
+            return
+        if reply.trajectory is None:
+            self._failed(reply.status)
+            if reply.status == "invalid_start" and self.motion is not None and \
+                    self.motion.kind_at(t) != "dodge" and self._dodge(t):
+                self._react(t + self.config.control_dt_s)
+            return
+        new = self._joined(reply)
+        if new is None:
+            self._failed("join_in_collision")
+            return
+        self._budget = self.config.planning_budget_s
+        self.counters.replans += 1
+        self._install(new)
+        self._resolve(req.t_handoff, req.t_request)
+        self._react(req.t_handoff)
+
+    def _failed(self, why: str) -> None:
+        self.counters.failed_plans += 1
+        self.counters.failures.append(why)
+        self._budget = min(self._budget * 2, self.config.max_budget_s)
+        self._need = self._need or "retry"
+
+    def _joined(self, reply: PlanReply) -> Motion | None:
+        """The reply's trajectory joined onto the motion at the handoff, the first join that
+        is free of the latest predicted obstacles with its rest."""
+        req = reply.request
+        assert reply.trajectory is not None and self.motion is not None
+        target = trajectory_motion(reply.trajectory, 0.0)
+        self.world.fast.set_obstacles(self._seen)
+        for offset in self.config.join_offsets_s:
+            new = join(req.start, req.t_handoff, target, min(offset, target.t_end),
+                       self.limits)
+            if new is not None and self._free(new, req.t_handoff, new.pieces[0].t_end + 0.1):
+                return new
+        return None
+
+    def _dodge(self, t: float) -> bool:
+        """Out of the obstacles' way when braking along the path is not: a Ruckig move from
+        the next command to the nearest of :data:`DODGE_CANDIDATES` random configurations
+        within :data:`DODGE_RAD`, the first that is free at every step of the predicted motion
+        (:meth:`_safe_in_time`). Whether one was installed."""
+        assert self.motion is not None
+        dt = self.config.control_dt_s
+        now = self.motion.sample(t + dt)
+        robot = self.world.robot
+        D = self._rng.uniform(-DODGE_RAD, DODGE_RAD, (DODGE_CANDIDATES, robot.dof))
+        D *= self._rng.uniform(0.2, 1.0, (DODGE_CANDIDATES, 1))
+        C = np.clip(now.q + D, robot.lower, robot.upper)
+        C = C[np.argsort(np.linalg.norm(C - now.q, axis=1))]
+        z = np.zeros_like(now.q)
+        moves = []
+        for q_r in C:
+            piece = ruckig_piece(now, State(q_r, z, z), t + dt, self.limits, "dodge")
+            if piece is not None:
+                moves.append(Motion((piece,)))
+        safe = self._safe_in_time(moves, t + dt)
+        if not safe.any():
+            return False
+        self._install(moves[int(np.argmax(safe))])
+        self.counters.dodges += 1
+        return True
+
+    def _safe_in_time(self, motions: list[Motion], t0: float) -> NDArray[np.bool_]:
+        """Which ``motions`` (all starting at t0) are within the limits and free of the
+        obstacles' predicted motion, window by window: over each :data:`WINDOW_S` of the
+        horizon the fast checker (conservative) holds the sweep of that window only, and the
+        motions' configurations of that window are checked against it; the last window's
+        sweep also holds for the rest of each motion."""
+        c = self.config
+        n_win = max(1, math.ceil(c.horizon_s / WINDOW_S))
+        ok = np.ones(len(motions), dtype=bool)
+        fast = self.world.fast
+        try:
+            for k in range(n_win):
+                a, b = t0 + k * WINDOW_S, t0 + (k + 1) * WINDOW_S
+                fast.set_obstacles(predicted_obstacles(self.tracks, a, WINDOW_S, c.margin_m))
+                last = k == n_win - 1
+                for i, m in enumerate(motions):
+                    if ok[i]:
+                        _, Q = m.positions(a, max(b, m.t_end) if last else b, c.check_dt_s)
+                        ok[i] = bool(self.world.robot.within_limits(Q).all()
+                                     and fast.valid(Q).all())
+        finally:
+            fast.set_obstacles(self._seen)
+        return ok
+
+    # --- checks -----------------------------------------------------------------------
+    def _first_conflict(self, motion: Motion, t: float) -> float | None:
+        """The first time (s) from t at which ``motion`` is in collision with the world's
+        current obstacles (the fast checker: it never calls free what the exact one calls
+        in collision), or None."""
+        if t >= motion.t_end:
+            ts, Q = np.array([t]), motion.sample(t).q[None]
+        else:
+            ts, Q = motion.positions(t, motion.t_end, self.config.check_dt_s)
+        ok = self.world.fast.valid(Q)
+        if ok.all():
+            return None
+        i = int(np.argmin(ok))
+        self._sync_exact()
+        if exact_path_decision(self.world.fast, self.world.exact, Q[i:], 1).valid:
+            return None
+        return float(ts[i])
+
+    def _free(self, motion: Motion, t: float, until: float = math.inf) -> bool:
+        """Whether ``motion`` from t (to ``until``, s) is within the joint limits and free (the
+        exact decision at the check step, and at ≤ 0.02 rad steps)."""
+        _, Q = motion.positions(t, min(motion.t_end, until), self.config.check_dt_s)
+        if not self.world.robot.within_limits(Q).all():
+            return False
+        step = float(np.abs(np.diff(Q, axis=0)).max(initial=0.0))
+        sub = max(1, math.ceil(step / 0.02))
+        self._sync_exact()
+        return bool(exact_path_decision(self.world.fast, self.world.exact, Q, sub).valid)
+
+    def _sync_exact(self) -> None:
+        """The exact checker holds the obstacles the fast one does (set only when needed:
+        4 ms against the fast checker's 0.3)."""
+        if self._exact_has is not self._seen:
+            self.world.exact.set_obstacles(self._seen)
+            self._exact_has = self._seen
+
+    # --- bookkeeping ------------------------------------------------------------------
+    def _install(self, motion: Motion) -> None:
+        """Command ``motion`` from its start (the current motion up to there)."""
+        self.motion = motion if self.motion is None else self.motion.then(motion)
+        self._token += 1
+
+    def _resolve(self, t_resolved: float, observed_by: float) -> None:
+        """The reactions observed by ``observed_by`` (s) are resolved by a motion starting at
+        ``t_resolved`` (s)."""
+        for r in self.reactions:
+            if r.t_resolved is None and r.t_observed <= observed_by:
+                r.t_resolved = t_resolved
+
+    def _react(self, t: float) -> None:
+        """The open reactions got a first answer starting at t (s)."""
+        for r in self.reactions:
+            if r.t_reacted is None and r.t_observed <= t:
+                r.t_reacted = t
+
+    def _cancel(self) -> None:
+        if self._pending is not None:
+            self.worker.cancel()
+            self._pending = None
+

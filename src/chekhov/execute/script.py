@@ -1,0 +1,155 @@
+"""Scripted, seeded disturbances for one pick-and-place episode (:class:`EpisodeScript`,
+:func:`make_script`): a task case (from a pre-grasp or ready configuration to another object's
+pre-grasp pose), and during the motion a person's forearm sweeping across the arm's way, a goal
+change to a third object's pre-grasp, and a kick.
+
+The script leaves the arm a way out: the forearm (a capsule: a cylinder with a sphere on each
+end, radius :data:`FOREARM_RADIUS_M`) moves at most 1 m/s and its whole sweep stays at least
+:data:`BASE_CLEARANCE_M` horizontally from the robot's base (its torso) and
+:data:`SHOULDER_CLEARANCE_M` from the arm's first joint; a kick is at most
+0.1 rad per joint and is shrunk (halved, up to 4 times) until the kicked configuration is within
+the limits and collision-free. Units: s, m, rad.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from chekhov.cases import sample_task_case, task_targets
+from chekhov.execute.obstacles import MovingObstacle
+from chekhov.robot.goal import Goal
+from chekhov.scene.model import Shape
+from chekhov.world import World
+
+Array = NDArray[np.float64]
+
+FOREARM_RADIUS_M = 0.045
+FOREARM_LENGTH_M = 0.28
+BASE_CLEARANCE_M = 0.3
+SHOULDER_CLEARANCE_M = 0.15
+SWEEP_M = 1.2
+KICK_RAD = 0.1
+SPEED_MPS = (0.3, 1.0)
+
+
+@dataclass(frozen=True, eq=False)
+class Kick:
+    """At time ``t`` (s) the arm is displaced by ``dq`` (K,) rad (before shrinking)."""
+
+    t: float
+    dq: Array
+
+
+@dataclass(frozen=True, eq=False)
+class GoalChange:
+    """At time ``t`` (s) the goal becomes ``goal`` (labelled ``label``)."""
+
+    t: float
+    goal: Goal
+    label: str
+
+
+@dataclass(frozen=True, eq=False)
+class EpisodeScript:
+    """One episode: start (K,) rad, the first goal, and what happens when."""
+
+    index: int
+    q_start: Array
+    goal: Goal
+    goal_label: str
+    obstacles: tuple[MovingObstacle, ...] = ()
+    goal_changes: tuple[GoalChange, ...] = ()
+    kicks: tuple[Kick, ...] = ()
+
+    @property
+    def last_event_s(self) -> float:
+        """s, when the last scripted disturbance is over."""
+        times = [o.t_end for o in self.obstacles] + [g.t for g in self.goal_changes] + \
+                [k.t for k in self.kicks]
+        return max(times, default=0.0)
+
+    def undisturbed(self) -> EpisodeScript:
+        return EpisodeScript(self.index, self.q_start, self.goal, self.goal_label)
+
+
+def episode_rng(seed: int, index: int) -> np.random.Generator:
+    return np.random.default_rng([seed, index, 18])
+
+
+def make_script(world: World, seed: int, index: int, duration_s: float,
+                ee_path: Array) -> EpisodeScript:
+    """Episode ``index`` of stream ``seed``: its task case and one disturbance of each kind
+    timed against the undisturbed motion (``duration_s`` s, end-effector positions
+    ``ee_path`` (N, 3) m along it, evenly in time)."""
+    case = sample_task_case(world, seed, index)
+    rng = episode_rng(seed, index)
+    goal = Goal.pose(case.T_goal)
+    arm = _forearm(world, rng, duration_s, ee_path)
+    change = _goal_change(world, rng, duration_s, case.goal_label)
+    kick = Kick(float(rng.uniform(0.1, 0.9) * duration_s),
+                rng.uniform(-KICK_RAD, KICK_RAD, world.robot.dof))
+    return EpisodeScript(index, case.q_start, goal, case.goal_label, arm,
+                         () if change is None else (change,), (kick,))
+
+
+def start_and_goal(world: World, seed: int, index: int) -> tuple[Array, Goal]:
+    case = sample_task_case(world, seed, index)
+    return case.q_start, Goal.pose(case.T_goal)
+
+
+def _forearm(world: World, rng: np.random.Generator, duration_s: float, ee_path: Array
+             ) -> tuple[MovingObstacle, ...]:
+    """A capsule crossing the undisturbed end-effector path near a random point of it, in a
+    random horizontal direction, at a random speed; redrawn while its sweep comes nearer than
+    :data:`BASE_CLEARANCE_M` to the base."""
+    base = world.robot.T_world_base[:3, 3]
+    shoulder = world.robot.reach[0]
+    for _ in range(50):
+        u = float(rng.uniform(0.3, 0.8))
+        p = ee_path[min(int(u * len(ee_path)), len(ee_path) - 1)] + rng.uniform(-0.1, 0.1, 3)
+        a = float(rng.uniform(0, 2 * np.pi))
+        d = np.array([np.cos(a), np.sin(a), 0.0])
+        p0, p1 = p - d * SWEEP_M / 2, p + d * SWEEP_M / 2
+        if _horizontal_distance(base, p0, p1) < BASE_CLEARANCE_M or \
+                _horizontal_distance(shoulder, p0, p1) < SHOULDER_CLEARANCE_M:
+            continue
+        speed = float(rng.uniform(*SPEED_MPS))
+        t_cross = u * duration_s
+        t0 = max(t_cross - SWEEP_M / 2 / speed, 0.05)
+        axis = float(rng.uniform(0, np.pi))
+        R = _axis_rotation(np.array([np.cos(axis), np.sin(axis), 0.0]))
+        half = R[:, 2] * FOREARM_LENGTH_M / 2
+        parts = (("forearm", Shape("cylinder", (FOREARM_RADIUS_M, FOREARM_LENGTH_M)), 0.0),
+                 ("elbow", Shape("sphere", (FOREARM_RADIUS_M,)), -1.0),
+                 ("wrist", Shape("sphere", (FOREARM_RADIUS_M,)), 1.0))
+        return tuple(MovingObstacle(name, shape, R, p0 + k * half, p1 + k * half, t0, speed)
+                     for name, shape, k in parts)
+    return ()
+
+
+def _goal_change(world: World, rng: np.random.Generator, duration_s: float, label: str
+                 ) -> GoalChange | None:
+    targets = [t for t in task_targets(world).pregrasps if t.label != label]
+    if not targets:
+        return None
+    t = targets[int(rng.integers(len(targets)))]
+    return GoalChange(float(rng.uniform(0.2, 0.6) * duration_s), Goal.pose(t.T), t.label)
+
+
+def _horizontal_distance(c: Array, p0: Array, p1: Array) -> float:
+    """m, the distance in the xy plane from point c to the segment p0-p1."""
+    a, b, x = p0[:2], p1[:2], c[:2]
+    ab = b - a
+    s = float(np.clip(np.dot(x - a, ab) / max(float(np.dot(ab, ab)), 1e-12), 0.0, 1.0))
+    return float(np.linalg.norm(a + s * ab - x))
+
+
+def _axis_rotation(z: Array) -> Array:
+    """A rotation whose z axis is the unit vector z."""
+    z = z / np.linalg.norm(z)
+    x = np.cross([0.0, 0.0, 1.0], z)
+    x = x / np.linalg.norm(x) if np.linalg.norm(x) > 1e-9 else np.array([1.0, 0.0, 0.0])
+    return np.column_stack([x, np.cross(z, x), z])

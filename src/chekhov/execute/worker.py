@@ -1,0 +1,144 @@
+"""Where the executive's replans run: :class:`InlineWorker` (on the simulated clock: the plan
+is computed at once and becomes usable its measured wall time after the request, so a run is
+deterministic whenever planning beats its budget) or :class:`ThreadWorker` (a real thread
+beside a real-time control loop). Both run :func:`plan_motion`."""
+
+from __future__ import annotations
+
+import time
+from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from chekhov.errors import TrajectoryError
+from chekhov.execute.motion import State
+from chekhov.execute.obstacles import Obstacles
+from chekhov.planners.base import Planner
+from chekhov.planners.timed import timed_trajectory
+from chekhov.robot.goal import Goal
+from chekhov.timing import TimingConfig
+from chekhov.trajectory import JointTrajectory
+from chekhov.world import World
+
+Array = NDArray[np.float64]
+
+PLAN_SHARE = 0.6
+"""The share of a replan's budget given to the planner; the rest times the path and joins it
+(Ruckig timing on the certified polyline: ~2 ms)."""
+
+
+@dataclass(frozen=True, eq=False)
+class PlanRequest:
+    """A replan: from ``start``, the commanded state at clock time ``t_handoff`` (s), to
+    ``goal``, within ``budget_s`` (s) of planning. ``worlds``: the obstacle sets to plan
+    against, tried in order while the start or goal is in collision with one (the predicted
+    sweep, then the obstacles as last seen). ``token``: which motion the start was taken
+    from (a reply is used only while that motion is still commanded)."""
+
+    t_request: float
+    t_handoff: float
+    start: State
+    goal: Goal
+    worlds: tuple[Obstacles, ...]
+    budget_s: float
+    token: int
+
+
+@dataclass(frozen=True, eq=False)
+class PlanReply:
+    """A replan's answer: the timed trajectory (from ``request.start.q`` at rest, t = 0), or
+    None with the planner's status; ``wall_s``: the planning and timing's wall time (s)."""
+
+    request: PlanRequest
+    trajectory: JointTrajectory | None
+    status: str
+    wall_s: float
+
+
+def plan_motion(world: World, planner: Planner, request: PlanRequest,
+                timing: TimingConfig) -> PlanReply:
+    """Plan ``request`` with ``planner`` in ``world`` (its dynamic obstacles set to each of
+    the request's obstacle sets in turn) within :data:`PLAN_SHARE` of the budget, and time the
+    path (:func:`~chekhov.planners.timed.timed_trajectory`: a trajectory off the certified
+    polyline is checked exactly, one on it is not)."""
+    t0 = time.perf_counter()
+    status = "no_world"
+    for obstacles in request.worlds:
+        left = request.budget_s * PLAN_SHARE - (time.perf_counter() - t0)
+        if left <= 0:
+            break
+        world.set_obstacles(obstacles)
+        result = planner.plan(request.start.q, request.goal, left)
+        status = str(result.status)
+        if result.success and result.path is not None:
+            try:
+                traj = timed_trajectory(world, result.path, timing).trajectory
+            except TrajectoryError as e:
+                status = f"timing: {e}"
+                break
+            return PlanReply(request, traj, status, time.perf_counter() - t0)
+        if status not in ("invalid_start", "invalid_goal"):
+            break
+    return PlanReply(request, None, status, time.perf_counter() - t0)
+
+
+class Worker(Protocol):
+    """Runs one replan at a time."""
+
+    def submit(self, request: PlanRequest) -> None: ...
+
+    def poll(self, now: float) -> PlanReply | None:
+        """The reply, once it has come by clock time ``now`` (s); then the worker is free."""
+        ...
+
+    def cancel(self) -> None: ...
+
+
+class InlineWorker:
+    """Plans at submit time; the reply comes at ``t_request`` + its measured wall time."""
+
+    def __init__(self, world: World, planner: Planner, timing: TimingConfig) -> None:
+        self.world, self.planner, self.timing = world, planner, timing
+        self._reply: PlanReply | None = None
+
+    def submit(self, request: PlanRequest) -> None:
+        self._reply = plan_motion(self.world, self.planner, request, self.timing)
+
+    def poll(self, now: float) -> PlanReply | None:
+        r = self._reply
+        if r is None or now < r.request.t_request + r.wall_s:
+            return None
+        self._reply = None
+        return r
+
+    def cancel(self) -> None:
+        self._reply = None
+
+
+class ThreadWorker:
+    """Plans on a thread with its own world (the control loop's checks use another)."""
+
+    def __init__(self, world: World, planner: Planner, timing: TimingConfig) -> None:
+        self.world, self.planner, self.timing = world, planner, timing
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="chekhov-plan")
+        self._future: Future[PlanReply] | None = None
+
+    def submit(self, request: PlanRequest) -> None:
+        self._future = self._pool.submit(plan_motion, self.world, self.planner, request,
+                                         self.timing)
+
+    def poll(self, now: float) -> PlanReply | None:
+        f = self._future
+        if f is None or not f.done():
+            return None
+        self._future = None
+        return f.result()
+
+    def cancel(self) -> None:
+        self._future = None     # a running plan finishes on its own; its reply is dropped
+
+    def close(self) -> None:
+        self._pool.shutdown(wait=False, cancel_futures=True)
