@@ -1,0 +1,207 @@
+"""The reactive executive (chekhov.execute): joins and brakes within the limits, episodes that
+reach their goal through kicks, goal changes and a forearm sweeping across, judged after the
+fact by the exact checker against the obstacles' true poses; and ``chekhov react``."""
+
+import json
+
+import numpy as np
+import pytest
+
+from chekhov.cli import main
+from chekhov.execute.benchmark import ReactConfig, executive_planner, run_one
+from chekhov.execute.evaluate import evaluate_episode, limit_violations
+from chekhov.execute.motion import State, brake_along, join, ruckig_piece, trajectory_motion
+from chekhov.execute.obstacles import MovingObstacle
+from chekhov.execute.script import EpisodeScript, GoalChange, Kick, make_script, start_and_goal
+from chekhov.execute.simulate import EpisodeRecord
+from chekhov.robot.goal import Goal
+from chekhov.scene.model import Shape
+from chekhov.timing import TimingConfig, joint_limits, time_parameterize
+from chekhov.world import World
+
+CONFIG = ReactConfig()
+DT = CONFIG.executor.control_dt_s
+
+
+@pytest.fixture(scope="module")
+def world():
+    # a world of its own: the executive sets its dynamic obstacles
+    return World.load("tabletop_pole")
+
+
+@pytest.fixture(scope="module")
+def planner(world):
+    return executive_planner("Roadmap+TrajOpt", world)
+
+
+@pytest.fixture(scope="module")
+def limits(world):
+    return joint_limits(world.robot.velocity_limit, CONFIG.executor.timing)
+
+
+def _fd_ok(ts, Q, V, limits, slack=1e-6):
+    """Finite differences of positions and velocities within the limits (exact bounds by
+    the mean value theorem)."""
+    dt = np.diff(ts)[:, None]
+    v = np.abs(np.diff(Q, axis=0)) / dt
+    a = np.abs(np.diff(V, axis=0)) / dt
+    return bool((v <= limits.velocity * (1 + slack)).all()
+                and (a <= limits.acceleration * (1 + slack)).all())
+
+
+def _sampled(motion, t0, t1, dt=1e-3):
+    ts = np.arange(t0, t1, dt)
+    S = [motion.sample(float(t)) for t in ts]
+    return ts, np.array([s.q for s in S]), np.array([s.qd for s in S])
+
+
+def test_join_from_a_moving_state_is_continuous_and_within_limits(world, limits, rng):
+    robot = world.robot
+    P = np.array([robot.lower * 0.3 + robot.upper * 0.7, robot.lower * 0.6 + robot.upper * 0.4])
+    traj = time_parameterize(P, robot.joint_names, limits, TimingConfig(method="ruckig"))
+    target = trajectory_motion(traj.trajectory, 0.0)
+    qd = rng.uniform(-0.5, 0.5, robot.dof) * limits.velocity
+    start = State(P[0] + 0.05, qd, np.zeros(robot.dof))
+    joined = join(start, 1.0, target, 0.3, limits)
+    assert joined is not None
+    assert np.allclose(joined.sample(1.0).qd, qd, atol=1e-9)       # no velocity jump at start
+    t_join = joined.pieces[0].t_end
+    before, after = joined.sample(t_join - 1e-6), joined.sample(t_join + 1e-6)
+    assert np.abs(before.qd - after.qd).max() < 1e-3               # none where it lands
+    assert np.allclose(joined.end.q, P[1], atol=1e-6)
+    ts, Q, V = _sampled(joined, 1.0, joined.t_end)
+    assert _fd_ok(ts, Q, V, limits, slack=1e-3)
+
+
+def test_brake_along_stays_on_the_path_and_stops_within_limits(world, limits):
+    robot = world.robot
+    P = np.array([robot.lower * 0.2 + robot.upper * 0.8, robot.lower * 0.7 + robot.upper * 0.3])
+    z = np.zeros(robot.dof)
+    piece = ruckig_piece(State(P[0], z, z), State(P[1], z, z), 0.0, limits, "plan")
+    assert piece is not None
+    from chekhov.execute.motion import Motion
+    motion = Motion((piece,))
+    t0 = 0.45 * piece.t_end
+    brake = brake_along(motion, t0, limits)
+    assert brake.t_end < piece.t_end - 1e-3                  # it stops before the end
+    assert np.abs(brake.end.qd).max() == 0.0
+    ts, Q, V = _sampled(brake, t0, brake.t_end)
+    # on the motion's own path: near its positions sampled every 0.1 ms, in order
+    _, path, _ = _sampled(motion, t0, piece.t_end, 1e-4)
+    d = np.linalg.norm(Q[:, None, :] - path[None, :, :], axis=2)
+    assert d.min(axis=1).max() < 1e-3
+    assert np.all(np.diff(d.argmin(axis=1)) >= 0)             # never backwards
+    assert _fd_ok(ts, Q, V, limits, slack=1e-3)
+    assert np.allclose(brake.sample(t0).qd, motion.sample(t0).qd, atol=1e-9)
+
+
+def _script(world, index, **kw):
+    q0, goal = start_and_goal(world, 0, index)
+    return EpisodeScript(index, q0, goal, "", **kw)
+
+
+def _meets(world, q, goal):
+    T = world.robot.compute_ee_pose(q)
+    return float(np.linalg.norm(T[:3, 3] - goal.T_world_ee[:3, 3])) <= goal.position_tolerance
+
+
+def test_undisturbed_episode_reaches_the_goal_within_limits(world, planner, limits):
+    script = _script(world, 0)
+    rec = run_one(world, planner, script, 20.0, CONFIG)
+    assert rec.reached and rec.t_reached < 20.0
+    assert _meets(world, rec.q[-1], script.goal)
+    check = evaluate_episode(world, rec, limits, 0.1)
+    assert not check.collision and check.limit_violations == 0
+    assert rec.counters.replans == 1 and not rec.reactions
+
+
+def test_a_kick_is_rejoined_at_the_next_tick(world, planner, limits, rng):
+    plain = run_one(world, planner, _script(world, 1), 20.0, CONFIG)
+    dq = np.full(world.robot.dof, 0.04) * np.sign(rng.uniform(-1, 1, world.robot.dof))
+    script = _script(world, 1, kicks=(Kick(0.5 * plain.t_reached, dq),))
+    rec = run_one(world, planner, script, 20.0, CONFIG)
+    assert len(rec.kicks_applied) == 1 and rec.kicked.sum() == 1
+    kick = [r for r in rec.reactions if r.kind == "kick"]
+    assert len(kick) == 1 and kick[0].t_reacted is not None
+    assert kick[0].t_reacted - kick[0].t_observed <= DT + 1e-9
+    assert rec.reached and _meets(world, rec.q[-1], script.goal)
+    assert evaluate_episode(world, rec, limits, 0.1).limit_violations == 0
+
+
+def test_a_goal_change_mid_motion_ends_at_the_new_goal(world, planner, limits):
+    from chekhov.cases import task_targets
+    plain = run_one(world, planner, _script(world, 2), 20.0, CONFIG)
+    first = _script(world, 2)
+    other = next(t for t in task_targets(world).pregrasps
+                 if np.linalg.norm(t.T[:3, 3] - first.goal.T_world_ee[:3, 3]) > 0.1)
+    new_goal = Goal.pose(other.T)
+    script = _script(world, 2, goal_changes=(GoalChange(0.4 * plain.t_reached, new_goal,
+                                                        other.label),))
+    rec = run_one(world, planner, script, 20.0, CONFIG)
+    assert rec.reached
+    assert _meets(world, rec.q[-1], new_goal) and not _meets(world, rec.q[-1], first.goal)
+    check = evaluate_episode(world, rec, limits, 0.1)
+    assert not check.collision and check.limit_violations == 0
+
+
+def test_scripted_episodes_never_collide_with_the_true_forearm(world, planner, limits):
+    reached = 0
+    for index in range(3):
+        plain = run_one(world, planner, _script(world, index), 20.0, CONFIG)
+        ee = world.robot.compute_ee_poses(plain.q)[:, :3, 3]
+        script = make_script(world, 0, index, plain.t_reached, ee)
+        assert len(script.obstacles) == 3 and script.kicks and script.goal_changes
+        rec = run_one(world, planner, script, 3 * plain.t_reached + 4, CONFIG)
+        check = evaluate_episode(world, rec, limits, 0.15)
+        assert not check.collision, f"episode {index}: contact at {check.first_contact_s} s"
+        assert check.limit_violations == 0
+        assert check.min_clearance_m > 0
+        reached += rec.reached
+    assert reached >= 2
+
+
+def test_the_evaluation_sees_a_collision_and_a_velocity_jump(world, limits):
+    """Not the executive's checks: a record driven straight through a sphere is a collision;
+    a position jump without a kick is a limit violation."""
+    q0, _ = start_and_goal(world, 0, 0)
+    p = world.robot.compute_ee_pose(q0)[:3, 3]
+    ball = MovingObstacle("ball", Shape("sphere", (0.05,)), np.eye(3), p - [0.5, 0, 0],
+                          p + [0.5, 0, 0], 0.0, 1.0)
+    n = 101
+    times = np.arange(n) * DT
+    Q = np.repeat(q0[None], n, axis=0)
+    Z = np.zeros_like(Q)
+    rec = EpisodeRecord(times, Q, Z, Z, np.zeros(n, dtype=bool), ("rest",) * n, (ball,),
+                        Goal.configuration(q0), True, times[-1], (), None, ())
+    check = evaluate_episode(world, rec, limits, 0.1)
+    assert check.collision and abs(check.first_contact_s - 0.4) < 0.06
+    assert check.min_clearance_m <= 0
+    Q2 = Q.copy()
+    Q2[50:] += 0.05                                   # 5 rad/s for one tick
+    rec2 = EpisodeRecord(times, Q2, Z, Z, np.zeros(n, dtype=bool), ("rest",) * n, (),
+                         Goal.configuration(q0), True, times[-1], (), None, ())
+    assert limit_violations(world, rec2, limits) == 1
+
+
+def test_react_command_prints_the_keys(capsys):
+    assert main(["react", "--scenes", "tabletop_pole", "--episodes", "1", "--json"]) == 0
+    row = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    for key in ("scene", "episodes", "success_rate", "collision_episodes", "min_clearance_m",
+                "p5_clearance_m", "reaction_latency_ms_p50", "reaction_latency_ms_p95",
+                "reaction_latency_ms_p99", "replans_per_episode", "safe_stops",
+                "time_to_goal_ratio", "limit_violations"):
+        assert key in row
+    assert row["scene"] == "tabletop_pole" and row["episodes"] == 1
+
+
+@pytest.mark.parametrize("argv, where", [
+    (["--episodes", "0"], "--episodes"),
+    (["--scenes", "no_such_scene"], "--scenes"),
+    (["--planners", "NoSuchPlanner"], "--planners"),
+])
+def test_react_command_refuses_bad_arguments(argv, where, capsys):
+    with pytest.raises(SystemExit) as e:
+        code = main(["react", *argv])
+        raise SystemExit(code)
+    assert e.value.code == 2
+    assert where in capsys.readouterr().err
