@@ -149,7 +149,7 @@ def test_scripted_episodes_never_collide_with_the_true_forearm(world, planner, l
     for index in range(3):
         plain = run_one(world, planner, _script(world, index), 20.0, CONFIG)
         ee = world.robot.compute_ee_poses(plain.q)[:, :3, 3]
-        script = make_script(world, 0, index, plain.t_reached, ee)
+        script = make_script(world, 0, index, plain.t_reached, ee, plain.q)
         assert len(script.obstacles) == 3 and script.kicks and script.goal_changes
         rec = run_one(world, planner, script, 3 * plain.t_reached + 4, CONFIG)
         check = evaluate_episode(world, rec, limits, 0.15)
@@ -165,8 +165,8 @@ def test_the_evaluation_sees_a_collision_and_a_velocity_jump(world, limits):
     a position jump without a kick is a limit violation."""
     q0, _ = start_and_goal(world, 0, 0)
     p = world.robot.compute_ee_pose(q0)[:3, 3]
-    ball = MovingObstacle("ball", Shape("sphere", (0.05,)), np.eye(3), p - [0.5, 0, 0],
-                          p + [0.5, 0, 0], 0.0, 1.0)
+    ball = MovingObstacle("ball", Shape("sphere", (0.05,)), np.eye(3), p - np.array([0.5, 0, 0]),
+                          p + np.array([0.5, 0, 0]), 0.0, 1.0)
     n = 101
     times = np.arange(n) * DT
     Q = np.repeat(q0[None], n, axis=0)

@@ -97,7 +97,8 @@ def react_scene(world: World, config: ReactConfig,
             scripts.append(None)
             continue
         ee = world.robot.compute_ee_poses(rec.q)[:, :3, 3]
-        scripts.append((make_script(world, config.seed, i, rec.t_reached, ee), rec.t_reached))
+        scripts.append((make_script(world, config.seed, i, rec.t_reached, ee, rec.q),
+                        rec.t_reached))
     out = []
     for planner in planners:
         results: list[EpisodeResult | None] = []

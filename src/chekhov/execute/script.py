@@ -8,7 +8,9 @@ end, radius :data:`FOREARM_RADIUS_M`) moves at most 1 m/s and its whole sweep st
 :data:`BASE_CLEARANCE_M` horizontally from the robot's base (its torso) and
 :data:`SHOULDER_CLEARANCE_M` from the arm's first joint; a kick is at most
 0.1 rad per joint and is shrunk (halved, up to 4 times) until the kicked configuration is within
-the limits and collision-free. Units: s, m, rad.
+the limits and collision-free. The forearm appears at least 0.3 m from the arm (as it is
+in the undisturbed motion then), so its first frame is no contact already. Units: s, m,
+rad.
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ FOREARM_RADIUS_M = 0.045
 FOREARM_LENGTH_M = 0.28
 BASE_CLEARANCE_M = 0.3
 SHOULDER_CLEARANCE_M = 0.15
+APPEAR_CLEARANCE_M = 0.3
 SWEEP_M = 1.2
 KICK_RAD = 0.1
 SPEED_MPS = (0.3, 1.0)
@@ -80,14 +83,16 @@ def episode_rng(seed: int, index: int) -> np.random.Generator:
 
 
 def make_script(world: World, seed: int, index: int, duration_s: float,
-                ee_path: Array) -> EpisodeScript:
+                ee_path: Array, q_path: Array | None = None) -> EpisodeScript:
     """Episode ``index`` of stream ``seed``: its task case and one disturbance of each kind
     timed against the undisturbed motion (``duration_s`` s, end-effector positions
-    ``ee_path`` (N, 3) m along it, evenly in time)."""
+    ``ee_path`` (N, 3) m along it, evenly in time). With the undisturbed configurations
+    ``q_path`` (N, K) rad, the forearm appears at least :data:`APPEAR_CLEARANCE_M` from the
+    arm as it is then (points along its links)."""
     case = sample_task_case(world, seed, index)
     rng = episode_rng(seed, index)
     goal = Goal.pose(case.T_goal)
-    arm = _forearm(world, rng, duration_s, ee_path)
+    arm = _forearm(world, rng, duration_s, ee_path, q_path)
     change = _goal_change(world, rng, duration_s, case.goal_label)
     kick = Kick(float(rng.uniform(0.1, 0.9) * duration_s),
                 rng.uniform(-KICK_RAD, KICK_RAD, world.robot.dof))
@@ -100,8 +105,8 @@ def start_and_goal(world: World, seed: int, index: int) -> tuple[Array, Goal]:
     return case.q_start, Goal.pose(case.T_goal)
 
 
-def _forearm(world: World, rng: np.random.Generator, duration_s: float, ee_path: Array
-             ) -> tuple[MovingObstacle, ...]:
+def _forearm(world: World, rng: np.random.Generator, duration_s: float, ee_path: Array,
+             q_path: Array | None) -> tuple[MovingObstacle, ...]:
     """A capsule crossing the undisturbed end-effector path near a random point of it, in a
     random horizontal direction, at a random speed; redrawn while its sweep comes nearer than
     :data:`BASE_CLEARANCE_M` to the base."""
@@ -119,6 +124,9 @@ def _forearm(world: World, rng: np.random.Generator, duration_s: float, ee_path:
         speed = float(rng.uniform(*SPEED_MPS))
         t_cross = u * duration_s
         t0 = max(t_cross - SWEEP_M / 2 / speed, 0.05)
+        if q_path is not None and _arm_distance(world, q_path, t0 / duration_s, p0) < \
+                APPEAR_CLEARANCE_M:
+            continue
         axis = float(rng.uniform(0, np.pi))
         R = _axis_rotation(np.array([np.cos(axis), np.sin(axis), 0.0]))
         half = R[:, 2] * FOREARM_LENGTH_M / 2
@@ -128,6 +136,17 @@ def _forearm(world: World, rng: np.random.Generator, duration_s: float, ee_path:
         return tuple(MovingObstacle(name, shape, R, p0 + k * half, p1 + k * half, t0, speed)
                      for name, shape, k in parts)
     return ()
+
+
+def _arm_distance(world: World, q_path: Array, u: float, p: Array) -> float:
+    """m, from point p (3,) to the arm at fraction u of ``q_path`` (points along the segments
+    between its joint origins and the end effector)."""
+    q = q_path[min(int(u * len(q_path)), len(q_path) - 1)]
+    pts = np.vstack([world.robot.compute_joint_placements(q)[:, :3, 3],
+                     world.robot.compute_ee_pose(q)[:3, 3]])
+    f = np.linspace(0.0, 1.0, 6)[:, None, None]
+    along = (pts[:-1][None] * (1 - f) + pts[1:][None] * f).reshape(-1, 3)
+    return float(np.linalg.norm(along - p, axis=1).min())
 
 
 def _goal_change(world: World, rng: np.random.Generator, duration_s: float, label: str
