@@ -45,8 +45,11 @@ Array = NDArray[np.float64]
 
 
 DODGE_CANDIDATES = 64
-DODGE_RAD = 0.5
+DODGE_RAD = 0.7
 """rad, the largest joint offset of a dodge's target."""
+EVADE_LEAD_S = 0.5
+"""s, how early an arm at rest, braking or dodging gets out of the way of a predicted
+conflict (a replan may find no start outside the obstacles' sweep)."""
 WINDOW_S = 0.1
 """s, the time windows of :meth:`Executor._safe_in_time`."""
 
@@ -57,8 +60,9 @@ class ExecutorConfig:
 
     Attributes:
         control_dt_s: s, the control period (100 Hz).
-        planning_budget_s: s, a replan's time limit; the new motion starts this long (rounded up
-            to ticks) after the request.
+        planning_budget_s: s, a replan's time limit; it plans from the state expected this
+            long (rounded up to ticks) after the request, and its answer is joined on at the
+            first tick after it comes.
         max_budget_s: s, the budget after failed replans (doubling each time).
         horizon_s: s, how far ahead the obstacles' motion is predicted.
         margin_m: m, how much the obstacles are inflated when planning and monitoring.
@@ -239,7 +243,10 @@ class Executor:
             self.reactions.append(Reaction("obstacle", t))
         if self._pending is None:
             self._need = "obstacle"
-        lead = self._handoff_time(t) - t + stop_time(self.motion.sample(t), self.limits)
+        state = self.motion.sample(t)
+        lead = self._handoff_time(t) - t + stop_time(state, self.limits)
+        if self.motion.kind_at(t) in ("rest", "brake", "dodge"):
+            lead = max(lead, EVADE_LEAD_S)       # a standing arm needs time to get away
         if t_hit - t <= lead + 2 * c.control_dt_s:
             self._evade(t)
 
@@ -296,25 +303,26 @@ class Executor:
             return
         self._pending = None
         self.counters.planning_wall_s.append(reply.wall_s)
-        if req.token != self._token or t + self.config.control_dt_s > req.t_handoff + 1e-9:
-            self.counters.late_plans += int(req.token == self._token)
+        if req.token != self._token:       # planned from a motion no longer commanded
             self._need = self._need or "retry"
             return
+        self.counters.late_plans += int(t + self.config.control_dt_s > req.t_handoff + 1e-9)
         if reply.trajectory is None:
             self._failed(reply.status)
             if reply.status == "invalid_start" and self.motion is not None and \
                     self.motion.kind_at(t) != "dodge" and self._dodge(t):
                 self._react(t + self.config.control_dt_s)
             return
-        new = self._joined(reply)
+        t_join = t + self.config.control_dt_s
+        new = self._joined(reply, t_join)
         if new is None:
             self._failed("join_in_collision")
             return
         self._budget = self.config.planning_budget_s
         self.counters.replans += 1
         self._install(new)
-        self._resolve(req.t_handoff, req.t_request)
-        self._react(req.t_handoff)
+        self._resolve(t_join, req.t_request)
+        self._react(t_join)
 
     def _failed(self, why: str) -> None:
         self.counters.failed_plans += 1
@@ -322,17 +330,18 @@ class Executor:
         self._budget = min(self._budget * 2, self.config.max_budget_s)
         self._need = self._need or "retry"
 
-    def _joined(self, reply: PlanReply) -> Motion | None:
-        """The reply's trajectory joined onto the motion at the handoff, the first join that
-        is free of the latest predicted obstacles with its rest."""
-        req = reply.request
+    def _joined(self, reply: PlanReply, t_join: float) -> Motion | None:
+        """The reply's trajectory joined onto the motion at clock time ``t_join`` (the next
+        command, as soon as the reply is in: the plan starts from the state expected at the
+        handoff, and the Ruckig join takes the arm from wherever it is onto it), the first
+        join that is free of the latest predicted obstacles with its rest."""
         assert reply.trajectory is not None and self.motion is not None
+        start = self.motion.sample(t_join)
         target = trajectory_motion(reply.trajectory, 0.0)
         self.world.fast.set_obstacles(self._seen)
         for offset in self.config.join_offsets_s:
-            new = join(req.start, req.t_handoff, target, min(offset, target.t_end),
-                       self.limits)
-            if new is not None and self._free(new, req.t_handoff, new.pieces[0].t_end + 0.1):
+            new = join(start, t_join, target, min(offset, target.t_end), self.limits)
+            if new is not None and self._free(new, t_join, new.pieces[0].t_end + 0.1):
                 return new
         return None
 
