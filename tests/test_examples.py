@@ -38,3 +38,10 @@ def test_anytime_example_hears_its_solutions_in_order():
     times = [float(ln.split()[0]) for ln in heard]
     lengths = [float(ln.split()[2]) for ln in heard]
     assert times == sorted(times) and lengths == sorted(lengths, reverse=True)
+
+
+def test_react_example_reaches_its_goal_without_contact(tmp_path):
+    png = tmp_path / "react.png"
+    stdout = _run("06_react.py", png, 1)
+    assert stdout.startswith("reached: True") and "collision: False" in stdout
+    assert "limit violations: 0" in stdout and png.stat().st_size > 10_000
