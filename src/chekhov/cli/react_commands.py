@@ -69,13 +69,14 @@ def _cmd_react(args: argparse.Namespace) -> int:
     def progress(message: str) -> None:
         print(f"[{time.perf_counter() - t0:6.0f} s] {message}", file=sys.stderr, flush=True)
 
-    lines = []
+    lines: list[str] = []
     for entry in args.scenes:
         for row in react_scene(World.load(entry), config, progress):
             lines.append(json.dumps(row))
             print(lines[-1] if args.json else _table_row(row), flush=True)
-    if args.out is not None:
-        write_atomic(args.out, lambda f: f.write("\n".join(lines) + "\n"), "w")
+        if args.out is not None:     # rewritten after each scene: a stopped run keeps them
+            text = "\n".join(lines) + "\n"
+            write_atomic(args.out, lambda f, text=text: f.write(text), "w")
     return 0
 
 

@@ -145,6 +145,7 @@ def summarize(scene: str, planner: str, results: list[EpisodeResult | None],
     ratios = [r.record.t_reached / r.undisturbed_s for r in success
               if r.record.t_reached is not None and r.undisturbed_s]
     walls = [1000 * w for r in done for w in r.record.counters.planning_wall_s]
+    steps = [1000 * w for r in done for w in r.record.counters.step_wall_s]
     collided = [r for r in done if r.check.collision]
     return {
         "scene": scene, "planner": planner, "episodes": len(results),
@@ -173,6 +174,8 @@ def summarize(scene: str, planner: str, results: list[EpisodeResult | None],
         "failed_plans": sum(r.record.counters.failed_plans for r in done),
         "late_plans": sum(r.record.counters.late_plans for r in done),
         "planning_wall_ms_p50": _pct(walls, 50), "planning_wall_ms_p95": _pct(walls, 95),
+        "control_step_ms_p50": _pct(steps, 50), "control_step_ms_p99": _pct(steps, 99),
+        "control_step_ms_max": max(steps) if steps else None,
         "time_to_goal_ratio": float(np.median(ratios)) if ratios else None,
         "limit_violations": sum(r.check.limit_violations for r in done),
         "seed": config.seed, "control_hz": round(1 / config.executor.control_dt_s),

@@ -16,6 +16,7 @@ it stops. Units: s, rad, m.
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -23,6 +24,7 @@ from numpy.typing import NDArray
 
 from chekhov.collision.path_check import exact_path_decision
 from chekhov.execute.motion import (
+    Bounds,
     Motion,
     State,
     brake_along,
@@ -141,6 +143,8 @@ class Counters:
     dodges: int = 0
     planning_wall_s: list[float] = field(default_factory=list)
     failures: list[str] = field(default_factory=list)
+    step_wall_s: list[float] = field(default_factory=list)
+    """s, each step's own compute time (an inline worker's planning left out)."""
 
 
 class Executor:
@@ -151,6 +155,7 @@ class Executor:
         self.world, self.worker, self.goal = world, worker, goal
         self.config = config if config is not None else ExecutorConfig()
         self.limits: Limits = joint_limits(world.robot.velocity_limit, self.config.timing)
+        self.bounds = Bounds(world.robot.lower, world.robot.upper)
         self.tracks = ObstacleTracks()
         self.motion: Motion | None = None
         self.reactions: list[Reaction] = []
@@ -162,11 +167,14 @@ class Executor:
         self._token = 0
         self._seen: Obstacles = {}
         self._exact_has: Obstacles | None = None
+        self._submit_wall = 0.0
         self._rng = np.random.default_rng(0)
 
     # --- the tick ---------------------------------------------------------------------
     def step(self, obs: Observation) -> Command:
         """Take one tick's observation; the command for the next tick (t + control_dt_s)."""
+        wall0 = time.perf_counter()
+        self._submit_wall = 0.0
         t, dt = obs.t, self.config.control_dt_s
         if self.motion is None:
             self._install(hold(np.asarray(obs.q, dtype=float), t))
@@ -184,6 +192,7 @@ class Executor:
         s = self.motion.sample(t + dt)
         cmd = Command(t + dt, s.q, s.qd, s.qdd, self.motion.kind_at(t + dt))
         self._last = cmd
+        self.counters.step_wall_s.append(time.perf_counter() - wall0 - self._submit_wall)
         return cmd
 
     @property
@@ -214,7 +223,7 @@ class Executor:
         self.reactions.append(Reaction("kick", t))
         start = State(np.asarray(obs.q, dtype=float), np.asarray(obs.qd, dtype=float), last.qdd)
         t_back = min(t + self.config.rejoin_s, self.motion.t_end)
-        back = join(start, t, self.motion, t_back, self.limits)
+        back = join(start, t, self.motion, t_back, self.limits, self.bounds)
         if back is not None and self._free(back, t, back.pieces[0].t_end + 0.1):
             self.counters.rejoins += 1
             self._install(back)
@@ -226,7 +235,7 @@ class Executor:
             return
         self._cancel()
         self.counters.safe_stops += 1
-        self._install(stop_from(start, t, self.limits))
+        self._install(stop_from(start, t, self.limits, self.bounds))
         self._react(t + self.config.control_dt_s)
         self._need = "kick"
 
@@ -290,7 +299,9 @@ class Executor:
         request = PlanRequest(t, t_h, start, self.goal, worlds, self._budget, self._token)
         self._pending = request
         self._need = None
+        w0 = time.perf_counter()
         self.worker.submit(request)
+        self._submit_wall += time.perf_counter() - w0
         self.world.fast.set_obstacles(self._seen)   # an inline worker planned in this world
         self._exact_has = None
 
@@ -340,7 +351,8 @@ class Executor:
         target = trajectory_motion(reply.trajectory, 0.0)
         self.world.fast.set_obstacles(self._seen)
         for offset in self.config.join_offsets_s:
-            new = join(start, t_join, target, min(offset, target.t_end), self.limits)
+            new = join(start, t_join, target, min(offset, target.t_end), self.limits,
+                       self.bounds)
             if new is not None and self._free(new, t_join, new.pieces[0].t_end + 0.1):
                 return new
         return None
@@ -361,7 +373,8 @@ class Executor:
         z = np.zeros_like(now.q)
         moves = []
         for q_r in C:
-            piece = ruckig_piece(now, State(q_r, z, z), t + dt, self.limits, "dodge")
+            piece = ruckig_piece(now, State(q_r, z, z), t + dt, self.limits, "dodge",
+                                 self.bounds)
             if piece is not None:
                 moves.append(Motion((piece,)))
         safe = self._safe_in_time(moves, t + dt)

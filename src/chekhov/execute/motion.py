@@ -36,6 +36,18 @@ BRAKE_SHARE = 0.85
 interpolation stay within the limits."""
 
 
+class Bounds(NamedTuple):
+    """Joint position limits: lower (K,), upper (K,) rad."""
+
+    lower: Array
+    upper: Array
+
+
+def _bound(inp: InputParameter, bounds: Bounds | None) -> None:
+    if bounds is not None:
+        inp.min_position, inp.max_position = list(bounds.lower), list(bounds.upper)
+
+
 class State(NamedTuple):
     """The arm's state: q (K,) rad, qd (K,) rad/s, qdd (K,) rad/s²."""
 
@@ -181,22 +193,24 @@ def hold(q: Array, t0: float) -> Motion:
     return Motion((Piece(t0, t0, lambda t: state, "rest"),))
 
 
-def join(start: State, t0: float, target: Motion, t_target: float, limits: Limits
-         ) -> Motion | None:
+def join(start: State, t0: float, target: Motion, t_target: float, limits: Limits,
+         bounds: Bounds | None = None) -> Motion | None:
     """From ``start`` at clock time t0 onto ``target`` at its time ``t_target`` (s): a Ruckig
     piece to the target's state there, then the target from there on, shifted to follow. None
     when Ruckig finds no motion (e.g. a start state outside the limits)."""
-    piece = ruckig_piece(start, target.sample(t_target), t0, limits, "join")
+    piece = ruckig_piece(start, target.sample(t_target), t0, limits, "join", bounds)
     if piece is None:
         return None
     return Motion((piece, *target.rebased(t_target, piece.t_end).pieces))
 
 
-def ruckig_piece(start: State, goal: State, t0: float, limits: Limits, kind: str
-                 ) -> Piece | None:
-    """The time-optimal jerk-limited piece from ``start`` to ``goal`` starting at t0."""
+def ruckig_piece(start: State, goal: State, t0: float, limits: Limits, kind: str,
+                 bounds: Bounds | None = None) -> Piece | None:
+    """The time-optimal jerk-limited piece from ``start`` to ``goal`` starting at t0, within
+    the joint position ``bounds`` when given."""
     dof = len(start.q)
     inp = InputParameter(dof)
+    _bound(inp, bounds)
     inp.current_position, inp.current_velocity = list(start.q), list(start.qd)
     inp.current_acceleration = list(np.clip(start.qdd, -limits.acceleration,
                                             limits.acceleration))
@@ -220,12 +234,14 @@ def ruckig_piece(start: State, goal: State, t0: float, limits: Limits, kind: str
     return Piece(t0, t0 + traj.duration, sample, kind)
 
 
-def stop_from(start: State, t0: float, limits: Limits) -> Motion:
+def stop_from(start: State, t0: float, limits: Limits, bounds: Bounds | None = None
+              ) -> Motion:
     """To rest from ``start`` (off any path: after a kick) by Ruckig's velocity interface,
-    each joint braking at once."""
+    each joint braking at once (within the position ``bounds`` when given)."""
     from ruckig import ControlInterface
     dof = len(start.q)
     inp = InputParameter(dof)
+    _bound(inp, bounds)
     inp.control_interface = ControlInterface.Velocity
     inp.current_position, inp.current_velocity = list(start.q), list(start.qd)
     inp.current_acceleration = list(np.clip(start.qdd, -limits.acceleration,
@@ -235,7 +251,12 @@ def stop_from(start: State, t0: float, limits: Limits) -> Motion:
     inp.max_acceleration = list(limits.acceleration)
     inp.max_jerk = list(limits.jerk * JOIN_JERK_SCALE)
     traj = Trajectory(dof)
-    Ruckig(dof).calculate(inp, traj)
+    try:
+        Ruckig(dof).calculate(inp, traj)
+    except Exception:   # ruckig.RuckigError: a joint too near its bound to stop within it
+        if bounds is None:
+            raise
+        return stop_from(start, t0, limits, None)
 
     def sample(t: float) -> State:
         q, qd, qdd = traj.at_time(min(max(t, 0.0), traj.duration))

@@ -13,7 +13,7 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from chekhov.errors import TrajectoryError
+from chekhov.errors import ChekhovError, TrajectoryError
 from chekhov.execute.motion import State
 from chekhov.execute.obstacles import Obstacles
 from chekhov.planners.base import Planner
@@ -71,7 +71,10 @@ def plan_motion(world: World, planner: Planner, request: PlanRequest,
         if left <= 0:
             break
         world.set_obstacles(obstacles)
-        result = planner.plan(request.start.q, request.goal, left)
+        try:
+            result = planner.plan(request.start.q, request.goal, left)
+        except ChekhovError as e:     # e.g. a start outside the limits: no plan from there
+            return PlanReply(request, None, f"input: {e}", time.perf_counter() - t0)
         status = str(result.status)
         if result.success and result.path is not None:
             try:
