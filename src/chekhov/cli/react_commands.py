@@ -26,6 +26,8 @@ import json
 import sys
 import time
 from dataclasses import replace
+from pathlib import Path
+from typing import IO
 
 from chekhov.cli import checks
 from chekhov.errors import ChekhovError
@@ -55,7 +57,6 @@ def _check(args: argparse.Namespace) -> None:
 
 
 def _cmd_react(args: argparse.Namespace) -> int:
-    from chekhov.atomic import write_atomic
     from chekhov.execute.benchmark import ReactConfig, react_scene
     from chekhov.execute.executor import ExecutorConfig
     from chekhov.world import World
@@ -75,9 +76,17 @@ def _cmd_react(args: argparse.Namespace) -> int:
             lines.append(json.dumps(row))
             print(lines[-1] if args.json else _table_row(row), flush=True)
         if args.out is not None:     # rewritten after each scene: a stopped run keeps them
-            text = "\n".join(lines) + "\n"
-            write_atomic(args.out, lambda f, text=text: f.write(text), "w")
+            _write_lines(args.out, lines)
     return 0
+
+
+def _write_lines(path: Path, lines: list[str]) -> None:
+    from chekhov.atomic import write_atomic
+    text = "\n".join(lines) + "\n"
+
+    def write(f: IO[str]) -> None:
+        f.write(text)
+    write_atomic(path, write, "w")
 
 
 def _table_row(row: dict[str, object]) -> str:
