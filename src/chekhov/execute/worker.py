@@ -34,7 +34,8 @@ PLAN_SHARE = 0.6
 class PlanRequest:
     """A replan: from ``start``, the commanded state at clock time ``t_handoff`` (s), to
     ``goal``, within ``budget_s`` (s) of planning. ``worlds``: the obstacle sets to plan
-    against, tried in order while the start or goal is in collision with one (the predicted
+    against, tried in order while the start or goal is in collision with one or the goal
+    pose has no free IK solution in it (the predicted
     sweep, then the obstacles as last seen). ``token``: which motion the start was taken
     from (a reply is used only while that motion is still commanded)."""
 
@@ -83,7 +84,7 @@ def plan_motion(world: World, planner: Planner, request: PlanRequest,
                 status = f"timing: {e}"
                 break
             return PlanReply(request, traj, status, time.perf_counter() - t0)
-        if status not in ("invalid_start", "invalid_goal"):
+        if status not in ("invalid_start", "invalid_goal", "no_ik"):
             break
     return PlanReply(request, None, status, time.perf_counter() - t0)
 
