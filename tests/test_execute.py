@@ -205,3 +205,12 @@ def test_react_command_refuses_bad_arguments(argv, where, capsys):
         raise SystemExit(code)
     assert e.value.code == 2
     assert where in capsys.readouterr().err
+
+
+def test_a_worker_refuses_a_planner_of_another_world(planner):
+    from chekhov.errors import ChekhovError
+    from chekhov.execute.worker import InlineWorker, ThreadWorker
+    other = World.load("tabletop_pole")
+    for kind in (InlineWorker, ThreadWorker):
+        with pytest.raises(ChekhovError, match="another World"):
+            kind(other, planner, CONFIG.executor.timing)

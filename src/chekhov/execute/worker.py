@@ -89,6 +89,13 @@ def plan_motion(world: World, planner: Planner, request: PlanRequest,
     return PlanReply(request, None, status, time.perf_counter() - t0)
 
 
+def _same_world(world: World, planner: Planner) -> None:
+    """A worker sets the obstacles of ``world``: the planner must plan in that world."""
+    if getattr(planner, "world", world) is not world:
+        raise ChekhovError(f"worker: planner {getattr(planner, 'name', planner)!r} plans in "
+                           "another World than the worker's (build it for the worker's world)")
+
+
 class Worker(Protocol):
     """Runs one replan at a time."""
 
@@ -105,6 +112,7 @@ class InlineWorker:
     """Plans at submit time; the reply comes at ``t_request`` + its measured wall time."""
 
     def __init__(self, world: World, planner: Planner, timing: TimingConfig) -> None:
+        _same_world(world, planner)
         self.world, self.planner, self.timing = world, planner, timing
         self._reply: PlanReply | None = None
 
@@ -126,6 +134,7 @@ class ThreadWorker:
     """Plans on a thread with its own world (the control loop's checks use another)."""
 
     def __init__(self, world: World, planner: Planner, timing: TimingConfig) -> None:
+        _same_world(world, planner)
         self.world, self.planner, self.timing = world, planner, timing
         self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="chekhov-plan")
         self._future: Future[PlanReply] | None = None
