@@ -11,7 +11,7 @@ certificates the same way, against D_a + D_b. A configuration whose groups and p
 certified is free for the fast checker; any other is checked in full by
 :func:`validity.collisions`. So the answer is the same as checking every configuration
 with the fast checker, at a fraction of the cost. The lever-arm bounds L_gi are
-``PackedWorld.groups.lever`` (:func:`lever_arms`).
+``PackedWorld.groups.lever`` (``packed.lever_arms``).
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from chekhov.collision import packed
 from chekhov.collision.codes import NONE
 from chekhov.collision.kernels import grid_cell, signed_distance
 from chekhov.collision.validity import collisions, make_work
@@ -145,12 +146,37 @@ def make_walk_work(K, world):  # pragma: no cover - compiled
                     np.empty(K), np.empty((K, 3, 3)), np.empty((K, 3)), np.empty((G, 3)))
 
 
+@njit(cache=True, inline="always")
+def with_margin(world, pad, grow):  # pragma: no cover - compiled
+    """``world`` with group g's confirmation margin (``GroupGeometry.pad``) at least pad[g]
+    and its spheres' and bounding sphere's radii grow[g] larger (m, (G,) each): a
+    configuration it calls free has each group's geometry either cleared by the spheres (so
+    at least the spheres' padding plus grow[g] from everything) or proved more than pad[g]
+    from it (pad[a] + pad[b] from another group b)."""
+    geo, sph, grp = world.geometry, world.spheres, world.groups
+    radius = sph.radius.copy()
+    for g in range(grow.shape[0]):
+        for s in range(grp.start[g], grp.start[g + 1]):
+            radius[s] += grow[g]
+    geometry = packed.GroupGeometry(geo.kind, geo.R, geo.p, geo.size, np.maximum(geo.pad, pad),
+                                    geo.part_start, geo.vert_start, geo.verts, geo.part_centre)
+    spheres = packed.Spheres(sph.centre, radius, sph.joint, sph.inner)
+    groups = packed.Groups(grp.start, grp.centre, grp.radius + grow, grp.joint, grp.lever,
+                           grp.self_pairs)
+    return packed.PackedWorld(world.chain, spheres, groups, geometry, world.fixed, world.grids,
+                              world.static, world.dynamic, world.obstacles)
+
+
 @njit(cache=True)
-def first_dense_collision(P, substeps, start, world):  # pragma: no cover - compiled
+def first_dense_collision(P, substeps, start, pad, grow, world
+                          ):  # pragma: no cover - compiled
     """Index (>= ``start``) of the first configuration of the densified path that the fast
     checker calls colliding, or ``NONE``. The densified path has ``substeps`` configurations
     between each pair of waypoints of P (T, K), waypoints included (the order of
-    :func:`exact.densify`); configurations before index ``start`` are not looked at."""
+    :func:`exact.densify`); configurations before index ``start`` are not looked at. With
+    ``pad`` and ``grow`` (G,) m, in ``with_margin(world, pad, grow)``; empty: in ``world``."""
+    if pad.shape[0] > 0:
+        world = with_margin(world, pad, grow)
     T, K = P.shape
     work = make_work(K, world)
     ww = make_walk_work(K, world)
@@ -197,23 +223,4 @@ def motions_valid_dense(Q0, Q1, resolution, world):  # pragma: no cover - compil
             out[i] = False
             continue
         out[i] = _walk(Q0[i], Q1[i], n, 0, n - 1, False, world, work, ww) < 0
-    return out
-
-
-def lever_arms(parent: np.ndarray, p_parent_joint: np.ndarray, group_joint: np.ndarray,
-               group_centre: np.ndarray) -> np.ndarray:
-    """(G, K) bounds on the distance (m) from each joint's origin to each group's centre over
-    all configurations: the sum of the joint-to-joint offsets along the chain plus the centre's
-    offset from its own joint (triangle inequality); 0 for joints that do not move the group."""
-    G, K = len(group_joint), len(parent)
-    out = np.zeros((G, K))
-    offset = np.linalg.norm(p_parent_joint, axis=1)
-    for g in range(G):
-        j = int(group_joint[g])
-        reach = float(np.linalg.norm(group_centre[g]))
-        i = j
-        while i >= 0:
-            out[g, i] = reach
-            reach += offset[i]  # joint i's origin from its parent's
-            i = int(parent[i])
     return out

@@ -39,6 +39,12 @@ class ExactChecker:
         self.geom_model = robot.collision_model.copy()
         self._robot_ngeoms = self.geom_model.ngeoms
         self._radii: dict[int, Array] = {}   # motion bounds of the robot's geometries
+        # collision data whose requests carry per-pair security margins (pairs_within)
+        self._margin_data: pin.GeometryData | None = None
+        self._margins = np.zeros(0)
+        self._placed: Array | None = None   # where the margin data's geometries are placed
+        # bounding spheres of the geometries (pair_bounds): joint, centre in its frame, radius
+        self._spheres: tuple[NDArray[np.int64], Array, Array] | None = None
         self._obstacles: dict[str, int] = {}
         if scene is not None:
             for o in scene.objects:
@@ -71,8 +77,10 @@ class ExactChecker:
             M[lo, hi] = True
         gm.setCollisionPairs(M, True)   # pinocchio adds (i, j), i < j, in row-major order
         self.geom_data = pin.GeometryData(gm)
-        self._weights = pair_weights(self.model, gm, np.argwhere(np.triu(M, 1)),
-                                     self._radii)
+        self._margin_data = None
+        self._spheres = None
+        self._pairs = np.argwhere(np.triu(M, 1))   # (P, 2), in the model's order
+        self._weights = pair_weights(self.model, gm, self._pairs, self._radii)
 
     def add_obstacle(self, name: str, shape: Shape, T_world_obj: Array) -> None:
         if name in self._obstacles:
@@ -97,6 +105,8 @@ class ExactChecker:
         self.geom_model.geometryObjects[self._obstacles[name]].placement = pin.SE3(
             np.asarray(T_world_obj, dtype=float))
         self.geom_data = pin.GeometryData(self.geom_model)
+        self._margin_data = None
+        self._spheres = None
 
     def remove_obstacle(self, name: str) -> None:
         idx = self._obstacles.pop(name)
@@ -116,6 +126,94 @@ class ExactChecker:
             raise RobotError(f"expected configurations of shape (N, {self.robot.dof}), "
                              f"got {Q.shape}")
         return np.array([self.is_valid(q) for q in Q], dtype=bool)
+
+    @property
+    def collision_pairs(self) -> NDArray[np.int64]:
+        """(P, 2) the geometry indices of every collision pair, in ``geom_model``'s order."""
+        return self._pairs
+
+    @property
+    def motion_weights(self) -> tuple[Array, NDArray[np.int64]] | None:
+        """(W (U, K) m/rad, row (P,)): along a straight joint step Δq (rad), the geometries of
+        collision pair k move relative to each other by at most |Δq| · W[row[k]] m (no point
+        of either travels farther; ``advance.pair_weights``). None when a joint is not
+        revolute. Pairs are indexed as in ``geom_model.collisionPairs``."""
+        return self._weights
+
+    def pairs_within(self, q: Array, margins: Array, pairs: NDArray[np.int64] | None = None
+                     ) -> NDArray[np.int64]:
+        """The collision pairs closer than their margin at q (K,): the indices k (into
+        ``geom_model.collisionPairs``; of ``pairs`` only, all by default) with clearance below
+        ``margins[k]`` (m, one per collision pair; a colliding pair is among them), empty when
+        each is clear by its margin.
+
+        coal's collision test with the margin as its security margin (a yes/no with early
+        exit, ~30 times cheaper than a distance on the Panda's meshes); the margins are kept in
+        the requests of a GeometryData of their own, and only changed ones are set."""
+        gd, gm = self._margin_geometry(), self.geom_model
+        if not np.array_equal(self._margins, margins):
+            reqs = gd.collisionRequests
+            for k in np.flatnonzero(self._margins != margins).tolist():
+                reqs[k].security_margin = float(margins[k])
+            self._margins = np.array(margins, dtype=float)
+        if pairs is None or 4 * len(pairs) > len(margins):   # all pairs, in one call
+            self._placed = np.array(q, dtype=float)
+            if not pin.computeCollisions(self.model, self.data, gm, gd, self._placed, True):
+                return np.zeros(0, dtype=np.int64)
+            pin.computeCollisions(gm, gd, False)   # every pair: which are close
+            close = np.array([k for k, r in enumerate(gd.collisionResults) if r.isCollision()],
+                             dtype=np.int64)
+            return close if pairs is None else np.intersect1d(close, pairs)
+        self._place(q)
+        return np.array([k for k in np.asarray(pairs).tolist() if pin.computeCollision(gm, gd, k)],
+                        dtype=np.int64)
+
+    def pair_distances(self, q: Array, pairs: NDArray[np.int64]) -> Array:
+        """coal's distance (m; ≤ 0 in contact) between the geometries of each collision pair
+        in ``pairs`` (indices into ``geom_model.collisionPairs``) at q (K,)."""
+        gd = self._place(q)
+        return np.array([pin.computeDistance(self.geom_model, gd, k).min_distance
+                         for k in np.asarray(pairs).tolist()], dtype=float)
+
+    def _margin_geometry(self) -> pin.GeometryData:
+        """The GeometryData of :meth:`pairs_within` and :meth:`pair_distances` (a new one,
+        its margins 0, after the obstacles changed)."""
+        if self._margin_data is None:
+            self._margin_data = pin.GeometryData(self.geom_model)
+            self._margins = np.zeros(len(self.geom_model.collisionPairs))
+            self._placed = None
+        return self._margin_data
+
+    def _place(self, q: Array) -> pin.GeometryData:
+        """The margin GeometryData with the geometries placed at q (K,) (kept from the last
+        call at the same q)."""
+        gd = self._margin_geometry()
+        if self._placed is None or not np.array_equal(self._placed, q):
+            self._placed = np.array(q, dtype=float)
+            pin.updateGeometryPlacements(self.model, self.data, self.geom_model, gd,
+                                         self._placed)
+        return gd
+
+    def pair_bounds(self, q: Array, pairs: NDArray[np.int64]) -> Array:
+        """Lower bounds (m) on the distance of each collision pair in ``pairs`` (indices into
+        ``geom_model.collisionPairs``) at q (K,), from bounding spheres of the geometries
+        (coal's local AABBs): cheap (joint placements and arithmetic, no coal query), loose by
+        up to the geometries' sizes."""
+        if self._spheres is None:
+            objs = self.geom_model.geometryObjects
+            for o in objs:
+                o.geometry.computeLocalAABB()
+            self._spheres = (
+                np.array([o.parentJoint for o in objs], dtype=np.int64),
+                np.array([o.placement.act(np.asarray(o.geometry.aabb_center)) for o in objs]),
+                np.array([o.geometry.aabb_radius for o in objs], dtype=float))
+        joint, centre, radius = self._spheres
+        pin.forwardKinematics(self.model, self.data, np.asarray(q, dtype=float))
+        R = np.array([M.rotation for M in self.data.oMi])
+        t = np.array([M.translation for M in self.data.oMi])
+        c = np.einsum("gab,gb->ga", R[joint], centre) + t[joint]
+        a, b = self._pairs[pairs, 0], self._pairs[pairs, 1]
+        return np.sqrt(((c[a] - c[b]) ** 2).sum(axis=1)) - radius[a] - radius[b]
 
     def colliding_pairs(self, q: Array) -> list[tuple[str, str]]:
         """Names of every colliding geometry pair at q (for diagnostics)."""

@@ -35,6 +35,7 @@ from chekhov.scene.model import Scene, Shape
 
 Array = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
+_NO_MARGIN = np.zeros(0)   # dense_path.first_dense_collision in the world as it is
 
 
 @dataclass(frozen=True)
@@ -217,7 +218,8 @@ class FastChecker:
         ``valid(densify(path, substeps)[start:])``, computed with clearance certificates that
         skip most configurations (see ``dense_path.py``)."""
         P = self._as_batch(path)
-        i = self.run_kernel(dense_path.first_dense_collision, P, int(substeps), int(start))
+        i = self.run_kernel(dense_path.first_dense_collision, P, int(substeps), int(start),
+                            _NO_MARGIN, _NO_MARGIN)
         return None if i == NONE else int(i)
 
     def dense_path_valid(self, path: Array, substeps: int = 100) -> bool:

@@ -21,7 +21,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from chekhov.collision import codes, validity
-from chekhov.collision.dense_path import lever_arms
 from chekhov.collision.grid import DistanceGrid, build_grid, build_surface_grid, point_field
 from chekhov.collision.kernels import signed_distance, transform_points
 from chekhov.collision.primitives import (
@@ -74,7 +73,7 @@ class Groups(NamedTuple):
     start (G+1,): group g's spheres are start[g]:start[g+1]; centre (G, 3) (joint frame) and
     radius (G,) of a bounding sphere of them, m; joint (G,); lever (G, K): bounds on the
     distance (m) from joint k's origin to the centre over all configurations, 0 for joints
-    that do not move it (``dense_path.lever_arms``); self_pairs (P, 2): the group pairs
+    that do not move it (:func:`lever_arms`); self_pairs (P, 2): the group pairs
     checked for self-collision."""
 
     start: IntArray
@@ -255,6 +254,25 @@ def pack_world(robot: Robot, scene: Scene | None = None, *, spheres: SphereModel
         chain=chain, spheres=sph, groups=groups, geometry=geometry, fixed=fixed, grids=grids,
         static=static, dynamic=pack_primitives(p for p, dyn in obstacles.values() if dyn),
         obstacles=pack_primitives(p for p, _ in obstacles.values()))
+
+
+def lever_arms(parent: np.ndarray, p_parent_joint: np.ndarray, group_joint: np.ndarray,
+               group_centre: np.ndarray) -> np.ndarray:
+    """(G, K) bounds on the distance (m) from each joint's origin to each group's centre over
+    all configurations: the sum of the joint-to-joint offsets along the chain plus the centre's
+    offset from its own joint (triangle inequality); 0 for joints that do not move the group."""
+    G, K = len(group_joint), len(parent)
+    out = np.zeros((G, K))
+    offset = np.linalg.norm(p_parent_joint, axis=1)
+    for g in range(G):
+        j = int(group_joint[g])
+        reach = float(np.linalg.norm(group_centre[g]))
+        i = j
+        while i >= 0:
+            out[g, i] = reach
+            reach += offset[i]  # joint i's origin from its parent's
+            i = int(parent[i])
+    return out
 
 
 def _groups(sp: SphereModel, geoms: list[int], chain: KinematicChain, self_pairs: IntArray

@@ -1,11 +1,49 @@
-"""The exact checker's decision on a whole path, fast, and the certificate it leaves.
+"""The exact checker's decision on a whole path — its samples and the motion between them — fast,
+and the certificate it leaves.
 
-The conservative fast checker screens every configuration at ``substeps`` per segment, and coal
-looks only where it raises an alarm. Since the fast checker's spheres contain the robot's
-collision geometry (fast free ⇒ exact free), the path is exactly free iff coal finds every
-flagged stretch free. A passed check returns a :class:`PathCertificate` bound to the path's
-bytes, the substeps and the checkers' obstacle version, so that a later certification of the
-very same path in the very same world (``chekhov.planners.certify``) need not run it again.
+Samples: the waypoints and ``substeps`` interpolated configurations per segment (the order of
+:func:`exact.densify`). Checking only them is not enough: a Panda answer collided by 2 µm
+between two samples 0.0016 rad apart that were 40 and 80 µm clear. So the straight motion
+between adjacent samples is proved free too, each sample answering for its *cell*, the
+half-steps on either side of it:
+
+* Motion bound. Along a straight joint step Δq (rad) no point of collision pair p's two
+  geometries moves, relative to the other, by more than L_p = Σ_k |Δq_k| W_pk metres
+  (:attr:`ExactChecker.motion_weights`, from ``advance.pair_weights``, computed once per
+  robot and obstacle set): W_pk bounds the distance from joint k's axis of any point of the
+  geometry joint k moves, over every configuration (from the geometry's extent and the fixed
+  joint-to-joint offsets, by the triangle inequality), and only the joints between the two
+  geometries count. A point at distance r from a revolute axis moves at most r |Δq_k| when
+  that joint turns by Δq_k, and the joints' contributions add up. So a sample whose pair p is
+  at least L_p / 2 apart keeps it apart over its cell; a margin μ_p ≥ L_p / 2 (L_p of the
+  path's largest step, rounded up, plus :data:`MARGIN_SLACK`) is asked of every sample.
+* The fast checker screens every sample (its spheres contain the collision geometry: fast
+  free ⇒ exact free) with each sphere group's confirmation margin (``GroupGeometry.pad``,
+  0.1 mm) raised to the largest μ_p of the group's pairs and, where that exceeds the spheres'
+  padding (2 mm on the Panda, 1 mm on the Baxter), its spheres grown by the difference
+  (``dense_path.with_margin``): a sample it calls free then has each pair either cleared by
+  the spheres, so at least padding + growth apart, or proved more than the margin apart on
+  the covered geometry. Either way its cell is free.
+* Where the screen alarms, coal decides, sample by sample over :data:`EXACT_WINDOW` samples.
+  The path's first and last configurations by the boolean test alone: a start or goal may
+  legitimately be very near an object (a grasp in contact-free proximity), so the half-steps
+  next to them are not covered. Any other sample by coal's collision test with security
+  margin μ_p plus :data:`LOOKAHEAD` steps' motion bound (:meth:`ExactChecker.pairs_within`);
+  the pairs within it get coal's distance; a distance within :data:`MARGIN_SLACK` of contact
+  fails the path; a pair nearer than its cell's own bound, but not touching, gets its cell
+  refined (:func:`_motion_free`): each half-step is bisected, with coal distances, until the
+  distances at the ends of every piece exceed the piece's motion bound, at most
+  :data:`REFINE_POINTS` distances per half-step — so a path that passes close but free is
+  still certified, down to a few µm. Passed pairs keep certificates (:class:`_Coal`), so that
+  along a stretch near contact coal only looks at the pairs near contact again, and pairs
+  whose bounding spheres are far apart need no coal (:meth:`ExactChecker.pair_bounds`).
+
+With no motion bound (a joint that is not revolute) the coal checks are the boolean ones on
+the samples alone. The fast checker walks :data:`CHUNK_SEGMENTS` segments at a time with
+clearance certificates (``dense_path.py``). A passed check returns a :class:`PathCertificate`
+bound to the path's bytes, the substeps and the checkers' obstacle version, so that a later
+certification of the very same path in the very same world (``chekhov.planners.certify``) need
+not run it again.
 """
 
 from __future__ import annotations
@@ -19,6 +57,8 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+from chekhov.collision import dense_path
+from chekhov.collision.codes import NONE
 from chekhov.collision.exact import ExactChecker, densify
 from chekhov.collision.fast import FastChecker
 
@@ -29,6 +69,21 @@ CHUNK_SEGMENTS = 2
 EXACT_WINDOW = 4
 """Configurations coal checks from an alarm before the fast walk resumes (and the deadline is
 looked at again)."""
+MARGIN_SLACK = 2e-6
+"""m: added to every clearance margin and taken from every coal distance, for coal's own
+tolerance (its GJK stops within about 1e-6 m)."""
+LOOKAHEAD = 8
+"""Samples a pair stays certified after coal's screening test passes it: the test's margin is
+the pair's margin plus its motion bound over that many samples."""
+BOUND_PAIRS = 16
+"""With more pairs than this to look at in a sample, bounding spheres clear the far ones
+first (:meth:`ExactChecker.pair_bounds`, ~50 µs); fewer go to coal directly."""
+REFINE_POINTS = 48
+"""Coal distance evaluations at most per half-step refined by :func:`_motion_free`; a motion
+that needs more (closer than about L_p / 48, a few µm on the Panda) is not certified."""
+_GRID = 2 ** (1 / 8)
+"""Margins are rounded up to powers of this (≤ 9 % stricter), so that the same values recur
+from path to path and coal's requests are seldom set again."""
 
 
 @dataclass(frozen=True)
@@ -66,46 +121,168 @@ def path_digest(path: Array) -> bytes:
 
 def exact_path_decision(fast: FastChecker, exact: ExactChecker, path: Array,
                         substeps: int = 100, deadline: float = math.inf) -> PathDecision:
-    """Whether every waypoint of ``path`` (T, K) rad and ``substeps`` interpolated
-    configurations per segment are collision-free by the exact checker's decision, or None
-    when ``deadline`` (a ``time.perf_counter()`` value, s) passed before the decision.
+    """Whether every waypoint of ``path`` (T, K) rad, ``substeps`` interpolated configurations
+    per segment and the straight motions between them are collision-free by the exact
+    checker's decision (module docstring), or None when ``deadline`` (a
+    ``time.perf_counter()`` value, s) passed before the decision.
 
     The fast checker walks :data:`CHUNK_SEGMENTS` segments at a time with clearance
-    certificates; from each configuration it flags, coal checks
-    the next :data:`EXACT_WINDOW` configurations of that segment, and the fast walk resumes
-    after them.
+    certificates; from each configuration it flags, coal checks the next
+    :data:`EXACT_WINDOW` configurations of that segment, and the fast walk resumes after them
+    (or after those coal's own certificates cover).
     """
     P = np.ascontiguousarray(path, dtype=np.float64)
+    coal_ = _Coal.make(fast, exact, P, int(substeps))
     last = len(P) - 1
+    n = coal_.substeps + 1
     for a in range(0, max(last, 1), CHUNK_SEGMENTS):
         if time.perf_counter() > deadline:
             return PathDecision(None, None)
-        ok = _chunk_free(fast, exact, P[a:min(a + CHUNK_SEGMENTS, last) + 1], substeps,
-                         deadline)
-        if ok is not True:
-            return PathDecision(ok, None)
+        chunk = P[a:min(a + CHUNK_SEGMENTS, last) + 1]
+        size = (len(chunk) - 1) * n + 1   # the chunk's samples
+        i = coal_.first_alarm(fast, chunk, 0)
+        while i is not None:
+            if time.perf_counter() > deadline:
+                return PathDecision(None, None)
+            # coal, configuration by configuration, over a window, at most to the segment's
+            # far end (conservative advancement's first distances cost more than a few
+            # collision tests: a window of 4 near contact took 4.7 ms that way on the Panda,
+            # 0.4 ms so)
+            end = min(size, (i // n + 1) * n + 1, i + EXACT_WINDOW)
+            if not all(coal_.sample_free(a * n + j) for j in range(i, end)):
+                return PathDecision(False, None)
+            end = max(end, coal_.certified_through() + 1 - a * n)
+            i = coal_.first_alarm(fast, chunk, end) if end < size else None
     return PathDecision(True, PathCertificate(path_digest(P), int(substeps),
                                               fast.obstacles_version))
 
 
-def _chunk_free(fast: FastChecker, exact: ExactChecker, P: Array, substeps: int,
-                deadline: float) -> bool | None:
-    """:func:`exact_path_decision` on a few segments P (t, K)."""
-    dense: Array | None = None
-    n = substeps + 1
-    i = fast.first_dense_collision(P, substeps)
-    while i is not None:
-        if time.perf_counter() > deadline:
-            return None
-        if dense is None:
-            dense = densify(P, substeps)
-        # coal, configuration by configuration, over a window, at most to the segment's far
-        # end (conservative advancement's first distances cost more than a few collision
-        # tests: a window of 4 near contact took 4.7 ms that way on the Panda, 0.4 ms so)
-        end = min(len(dense), (i // n + 1) * n + 1, i + EXACT_WINDOW)
-        if exact.first_collision_brute(dense[i:end]) is not None:
-            return False
-        if end >= len(dense):
+class _Coal:
+    """Coal's part of one path's decision (module docstring), with certificates: a pair whose
+    clearance at sample j exceeds its margin μ_p by e stays margin-clear for floor(e / L_p)
+    samples (L_p: the pair's largest motion bound per sample on this path), so that along a
+    stretch near contact only the pairs near contact are looked at again."""
+
+    def __init__(self, exact: ExactChecker, P: Array, substeps: int,
+                 weights: tuple[Array, NDArray[np.int64]] | None) -> None:
+        self.exact = exact
+        self.P = P
+        self.substeps = substeps
+        self.weights = weights
+        # per fast-checker group, m: the screen's confirmation margins and sphere growth
+        # (empty: the screen as it is)
+        self.pad = self.grow = np.zeros(0)
+        self.D: Array | None = None   # the densified path, when first needed
+        if weights is not None:
+            W, row = weights
+            # m: per pair, the largest motion bound of one step between samples
+            self.L = np.maximum((np.abs(np.diff(P, axis=0)) @ W.T).max(axis=0)
+                                / (substeps + 1), 1e-12)[row]
+            self.mu = _round_up(0.5 * self.L) + MARGIN_SLACK
+            # the screening test's margins: a pass certifies the pair for LOOKAHEAD samples
+            self.look = self.mu + LOOKAHEAD * self.L
+            self.until = np.full(len(row), -1, dtype=np.int64)
+
+    @staticmethod
+    def make(fast: FastChecker, exact: ExactChecker, P: Array, substeps: int) -> _Coal:
+        """The checks for path P (T, K) at ``substeps``: margins from the path's largest
+        steps; each fast-checker group's confirmation margin the largest of its pairs', and
+        its spheres grown by as much as that exceeds their padding (module docstring)."""
+        weights = exact.motion_weights
+        if weights is None or len(P) < 2:
+            return _Coal(exact, P, substeps, None)
+        coal_ = _Coal(exact, P, substeps, weights)
+        pairs = exact.collision_pairs
+        need = np.zeros(exact.geom_model.ngeoms)   # m, per geometry
+        np.maximum.at(need, pairs[:, 0], coal_.mu)
+        np.maximum.at(need, pairs[:, 1], coal_.mu)
+        # the geometry each group covers (its first sphere's)
+        geometry = fast.spheres.geometries[fast.packed.groups.start[:-1]]
+        coal_.pad = need[geometry]
+        coal_.grow = np.maximum(coal_.pad - fast.robot.description.spheres.padding, 0.0)
+        return coal_
+
+    def first_alarm(self, fast: FastChecker, P: Array, start: int) -> int | None:
+        """Index (>= ``start``) into ``densify(P, self.substeps)`` of the first configuration
+        the screen flags, or None (``FastChecker.first_dense_collision`` with the margins)."""
+        i = fast.run_kernel(dense_path.first_dense_collision, P, self.substeps, start,
+                            self.pad, self.grow)
+        return None if i == NONE else int(i)
+
+    def certified_through(self) -> int:
+        """The last sample through which coal's certificates cover every pair (-1: none)."""
+        return -1 if self.weights is None else int(self.until.min())
+
+    def sample_free(self, j: int) -> bool:
+        """Whether sample j of the densified path is free and, unless it is the first or the
+        last, keeps every collision pair apart over its cell (module docstring)."""
+        if self.D is None:
+            self.D = densify(self.P, self.substeps)
+        D, exact = self.D, self.exact
+        if self.weights is None:
+            return exact.is_valid(D[j])
+        todo = np.flatnonzero(self.until < j)
+        if len(todo) == 0:
             return True
-        i = fast.first_dense_collision(P, substeps, start=end)
+        if j == 0 or j == len(D) - 1:
+            return exact.is_valid(D[j])
+        q = D[j]
+        if len(todo) > BOUND_PAIRS:   # those with bounding spheres far enough apart: no coal
+            lb = exact.pair_bounds(q, todo)
+            far = lb >= self.look[todo]
+            self.until[todo[far]] = j + ((lb[far] - self.mu[todo[far]])
+                                         // self.L[todo[far]]).astype(np.int64)
+            todo = todo[~far]
+            if len(todo) == 0:
+                return True
+        close = exact.pairs_within(q, self.look, todo)
+        self.until[todo] = j + LOOKAHEAD
+        if len(close) == 0:
+            return True
+        d = exact.pair_distances(q, close)
+        if d.min() <= MARGIN_SLACK:   # in contact, or too near it to prove anything
+            return False
+        spare = d - self.mu[close]
+        self.until[close] = j + np.floor(np.maximum(spare, 0.0) / self.L[close]).astype(np.int64)
+        if np.all(spare >= 0.0):
+            return True
+        # the bound of this very cell (the path's largest step's may be far larger)
+        W, row = self.weights
+        sides = (0.5 * (D[j - 1] + q), 0.5 * (q + D[j + 1]))   # the cell's ends
+        Wc = W[row[close]]
+        half = np.maximum(np.abs(sides[0] - q) @ Wc.T, np.abs(sides[1] - q) @ Wc.T)
+        near = d < half + MARGIN_SLACK
+        return not near.any() or all(_motion_free(exact, close[near], Wc[near], q, d[near], end)
+                                     for end in sides)
+
+
+def _round_up(x: Array | float) -> Array:
+    """x (m, > 0) rounded up to powers of :data:`_GRID`."""
+    return np.asarray(_GRID ** np.ceil(np.log(np.maximum(x, 1e-12)) / math.log(_GRID)))
+
+
+def _motion_free(exact: ExactChecker, pairs: NDArray[np.int64], Wc: Array, qa: Array,
+                 da: Array, qb: Array) -> bool:
+    """Whether the collision pairs ``pairs`` (C,) stay apart along the straight motion
+    qa → qb (K,) rad, given their coal distances da (C,) m at qa; Wc (C, K) their motion
+    weights (:attr:`ExactChecker.motion_weights`).
+
+    A piece [a, b] is proved when d_a + d_b > L (both less :data:`MARGIN_SLACK`), L = |b - a|
+    · W the motion bound of the piece: at a fraction t of the way the clearance is at least
+    max(d_a - t L, d_b - (1 - t) L) ≥ (d_a + d_b - L) / 2. Unproved pieces are halved, with
+    coal's distances at their midpoints, at most :data:`REFINE_POINTS` of them; a distance
+    within the slack of contact ends the proof too (False)."""
+    db = exact.pair_distances(qb, pairs)
+    pieces = [(qa, da, qb, db)]
+    points = 1
+    while pieces:
+        a, d0, b, d1 = pieces.pop()
+        if np.all(d0 + d1 - 2 * MARGIN_SLACK > np.abs(b - a) @ Wc.T):
+            continue
+        if points >= REFINE_POINTS or d0.min() <= MARGIN_SLACK or d1.min() <= MARGIN_SLACK:
+            return False
+        c = 0.5 * (a + b)
+        dc = exact.pair_distances(c, pairs)
+        points += 1
+        pieces += [(a, d0, c, dc), (c, dc, b, d1)]
     return True
