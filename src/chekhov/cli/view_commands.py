@@ -1,4 +1,5 @@
-"""Viewer command: ``chekhov view SCENE`` starts the interactive 3D viewer in the browser."""
+"""Viewer command: ``chekhov view SCENE`` starts the interactive 3D viewer in the browser;
+``--react`` shows the reactive executive live instead."""
 
 from __future__ import annotations
 
@@ -14,6 +15,8 @@ def _cmd_view(args: argparse.Namespace) -> int:
     except ImportError as e:
         raise ChekhovError("chekhov view needs the viewer extra: pip install 'chekhov[viewer]' "
                            f"({e})") from e
+    if args.react:
+        return _cmd_view_react(args)
     from chekhov.scene.io import load_scene
     from chekhov.viewer.app import check_port_free
 
@@ -42,6 +45,28 @@ def _cmd_view(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_view_react(args: argparse.Namespace) -> int:
+    """``chekhov view SCENE --react``: the reactive executive, live."""
+    from chekhov.scene.io import load_scene
+    from chekhov.viewer.app import check_port_free
+
+    for flag, value in (("--roadmap", args.roadmap), ("--cases", args.cases),
+                        ("--n-cases", args.n_cases)):
+        if value is not None:
+            raise ChekhovError(f"{flag} is for planning in the viewer, not for --react (the "
+                               "executive plans with the cached roadmap, on scripted episodes)")
+    load_scene(args.scene)
+    check_port_free(args.host, args.port)  # fail fast, before loading anything
+    from chekhov.viewer.react_app import open_react_viewer
+
+    viewer = open_react_viewer(args.scene, host=args.host, port=args.port,
+                               progress=lambda s: print(s, flush=True))
+    print(f"chekhov viewer: {viewer.url}  ({viewer.world.scene.name}, reactive executive; "
+          "Ctrl-C to stop)", flush=True)
+    viewer.serve_forever()
+    return 0
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     """Add ``view`` to the top-level parser."""
     p = sub.add_parser("view", help="interactive 3D viewer in the browser (viser): plan, "
@@ -61,4 +86,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="start with the roadmap's nodes hidden (a GUI checkbox shows them)")
     p.add_argument("--edges", action="store_true",
                    help="start with the roadmap's edges shown (dense: off by default)")
+    p.add_argument("--react", action="store_true",
+                   help="run the reactive executive live instead: the arm moves at 100 Hz "
+                        "through scripted episodes while a forearm sweeps across (drag the "
+                        "orange cylinder into its way too); shows the mode, the reaction "
+                        "latency, replans and safe stops")
     p.set_defaults(func=_cmd_view)

@@ -131,6 +131,15 @@ def _pct(x: list[float], q: float) -> float | None:
     return float(np.percentile(x, q)) if x else None
 
 
+def _problem(r: EpisodeResult) -> dict[str, object]:
+    """What went wrong in one episode, to find it again (its index and seed)."""
+    c = r.check
+    return {"index": r.script.index, "reached": r.record.reached, "collision": c.collision,
+            "first_contact_s": c.first_contact_s, "unavoidable": c.unavoidable,
+            "limit_violations": c.limit_violations, "violations": list(c.violation_kinds),
+            "failures": sorted(set(r.record.counters.failures))}
+
+
 def summarize(scene: str, planner: str, results: list[EpisodeResult | None],
               config: ReactConfig) -> dict[str, object]:
     """The JSON object of one scene and planner (keys: see ``chekhov react --help``)."""
@@ -178,6 +187,8 @@ def summarize(scene: str, planner: str, results: list[EpisodeResult | None],
         "control_step_ms_max": max(steps) if steps else None,
         "time_to_goal_ratio": float(np.median(ratios)) if ratios else None,
         "limit_violations": sum(r.check.limit_violations for r in done),
+        "problem_episodes": [_problem(r) for r in done if r.check.collision
+                             or r.check.limit_violations or not r.record.reached],
         "seed": config.seed, "control_hz": round(1 / config.executor.control_dt_s),
         "planning_budget_ms": 1000 * config.executor.planning_budget_s,
     }

@@ -53,6 +53,7 @@ class EpisodeCheck:
     clearances: Array
     limit_violations: int
     unavoidable: bool
+    violation_kinds: tuple[str, ...] = ()
 
 
 class TrueWorld:
@@ -114,8 +115,9 @@ def evaluate_episode(world: World, record: EpisodeRecord, limits: Limits,
                       for t, q in zip(record.times, record.q, strict=True)])
     first = float(record.times[hits[0]]) if hits else None
     unavoidable = bool(hits) and not _escapable(truth, record, hits[0], limits, window_s)
+    kinds = violation_kinds(world, record, limits)
     return EpisodeCheck(bool(hits), first, float(clear.min(initial=np.inf)), clear,
-                        limit_violations(world, record, limits), unavoidable)
+                        limit_violations(world, record, limits), unavoidable, kinds)
 
 
 def limit_violations(world: World, record: EpisodeRecord, limits: Limits) -> int:
@@ -134,6 +136,29 @@ def limit_violations(world: World, record: EpisodeRecord, limits: Limits) -> int
     bad[1:] |= v_bad | a_bad
     bad |= cmd_bad
     return int(bad.sum())
+
+
+def violation_kinds(world: World, record: EpisodeRecord, limits: Limits) -> tuple[str, ...]:
+    """Which limits are broken and where first: "position@t", "velocity@t", ... (s, mode)."""
+    out = []
+    if len(record.times) < 2:
+        return ()
+    dt = np.diff(record.times)[:, None]
+    tests = {
+        "position": ~world.robot.within_limits(record.q, tol=1e-6),
+        "velocity": np.r_[False, ((np.abs(np.diff(record.q, axis=0)) / dt > limits.velocity
+                                   * (1 + REL_TOL) + 1e-9).any(axis=1) & ~record.kicked[1:])],
+        "acceleration": np.r_[False, (np.abs(np.diff(record.qd, axis=0)) / dt
+                                      > limits.acceleration * (1 + REL_TOL) + 1e-9).any(axis=1)],
+        "commanded": ((np.abs(record.qd) > limits.velocity * (1 + REL_TOL) + 1e-9).any(axis=1)
+                      | (np.abs(record.qdd) > limits.acceleration * (1 + REL_TOL) + 1e-6)
+                      .any(axis=1)),
+    }
+    for name, bad in tests.items():
+        if bad.any():
+            i = int(np.argmax(bad))
+            out.append(f"{name}@{record.times[i]:.2f}s({record.modes[i]}, {int(bad.sum())})")
+    return tuple(out)
 
 
 def _escapable(truth: TrueWorld, record: EpisodeRecord, hit: int, limits: Limits,

@@ -294,6 +294,8 @@ class Executor:
         assert self.motion is not None
         t_h = self._handoff_time(t)
         start = self.motion.sample(t_h)
+        lo, hi = self.bounds
+        start = State(np.clip(start.q, lo, hi), start.qd, start.qdd)   # plan from inside
         seen = {n: (tr.shape, self.tracks.pose(n, t_h)) for n, tr in self.tracks.tracks.items()}
         worlds = (self._seen, seen) if self.tracks.tracks else ({},)
         request = PlanRequest(t, t_h, start, self.goal, worlds, self._budget, self._token)
@@ -350,9 +352,10 @@ class Executor:
         start = self.motion.sample(t_join)
         target = trajectory_motion(reply.trajectory, 0.0)
         self.world.fast.set_obstacles(self._seen)
-        for offset in self.config.join_offsets_s:
+        inside = bool(self.world.robot.within_limits(start.q[None])[0])
+        for offset in self.config.join_offsets_s:    # (from outside the limits: back in)
             new = join(start, t_join, target, min(offset, target.t_end), self.limits,
-                       self.bounds)
+                       self.bounds if inside else None)
             if new is not None and self._free(new, t_join, new.pieces[0].t_end + 0.1):
                 return new
         return None
@@ -427,10 +430,13 @@ class Executor:
         return float(ts[i])
 
     def _free(self, motion: Motion, t: float, until: float = math.inf) -> bool:
-        """Whether ``motion`` from t (to ``until``, s) is within the joint limits and free (the
-        exact decision at the check step, and at ≤ 0.02 rad steps)."""
+        """Whether ``motion`` from t (to ``until``, s) is within the joint limits (no further out
+        than its start, when that is out) and free (the exact decision at the check step, and
+        at ≤ 0.02 rad steps)."""
         _, Q = motion.positions(t, min(motion.t_end, until), self.config.check_dt_s)
-        if not self.world.robot.within_limits(Q).all():
+        lo, hi = self.bounds
+        excess = float(max(np.max(lo - Q[0]), np.max(Q[0] - hi), 0.0))   # a start outside
+        if not self.world.robot.within_limits(Q, tol=excess + 1e-9).all():
             return False
         step = float(np.abs(np.diff(Q, axis=0)).max(initial=0.0))
         sub = max(1, math.ceil(step / 0.02))

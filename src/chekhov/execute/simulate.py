@@ -79,7 +79,8 @@ def run_episode(world: World, executor: Executor, script: EpisodeScript, deadlin
         t = i * dt
         kicked = False
         while kicks and kicks[0].t <= t + 1e-9:
-            dq = _shrunk_kick(world, q, kicks.pop(0).dq, config.kick_halvings)
+            dq = _shrunk_kick(world, q, qd, kicks.pop(0).dq, config.kick_halvings,
+                              executor.limits.acceleration)
             if dq is not None:
                 q, kicked = q + dq, True
                 applied.append(dq)
@@ -105,12 +106,16 @@ def run_episode(world: World, executor: Executor, script: EpisodeScript, deadlin
         tuple(executor.reactions), executor.counters, tuple(applied))
 
 
-def _shrunk_kick(world: World, q: Array, dq: Array, halvings: int) -> Array | None:
-    """``dq`` (K,) rad, halved until q + dq is within the limits and free (exact checker,
-    the scene's static objects), or None."""
+def _shrunk_kick(world: World, q: Array, qd: Array, dq: Array, halvings: int,
+                 acceleration: Array) -> Array | None:
+    """``dq`` (K,) rad, halved until q + dq is within the limits — and so is where it comes to
+    rest braking at ``acceleration`` (K,) rad/s² from velocity ``qd`` (a bump does not throw
+    the arm past a limit) — and free (exact checker, the world's obstacles), or None."""
+    stop = qd * np.abs(qd) / (2 * acceleration)
     for _ in range(halvings + 1):
         q2 = q + dq
-        if world.robot.within_limits(q2[None])[0] and world.exact.is_valid(q2):
+        if world.robot.within_limits(np.vstack([q2, q2 + stop])).all() and \
+                world.exact.is_valid(q2):
             return dq
         dq = dq / 2
     return None

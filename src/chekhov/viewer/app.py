@@ -30,17 +30,18 @@ from chekhov.cases import CaseSet, cached_cases
 from chekhov.roadmap.graph import Roadmap
 from chekhov.robot.goal import Goal
 from chekhov.scene.model import Pose, SceneObject, Shape
-from chekhov.transforms import make_transform, quat_to_matrix, rotation_about
+from chekhov.transforms import make_transform, rotation_about
 from chekhov.viewer.draw import (
     PATH_RGB,
     SEED_RGB,
     RobotDrawing,
     SphereDrawing,
     camera_for,
-    draw_object,
+    draw_draggable,
     draw_roadmap,
     draw_scene,
     draw_trace,
+    pose_of,
 )
 from chekhov.viewer.meshes import RobotMeshes, se3_to_wxyz_xyz
 from chekhov.viewer.planning import (
@@ -82,6 +83,20 @@ def default_obstacle_pose(world: World) -> Array:
     Tb = world.robot.T_world_base
     T = make_transform((0.65, -0.45, 0.15), rotation_about((0.0, 1.0, 0.0), np.pi / 2))
     return np.asarray(Tb @ T, dtype=float)
+
+
+def start_server(world: World, *, host: str, port: int) -> viser.ViserServer:
+    """A viser server on host:port (0: any free port) with its camera on ``world``'s robot;
+    ViewerError when it lost the port to another process."""
+    server = viser.ViserServer(host=host, port=port, verbose=False)
+    if port != 0 and server.get_port() != port:  # lost a race for the port
+        server.stop()
+        raise ViewerError(f"port {port} on {host} is already in use; choose another "
+                          "with --port")
+    eye, look = camera_for(world)
+    server.initial_camera.position = tuple(eye)
+    server.initial_camera.look_at = tuple(look)
+    return server
 
 
 class Viewer:
@@ -147,15 +162,8 @@ class Viewer:
 
     def _start_server(self, host: str, port: int) -> None:
         """The viser server on host:port (0: any free port), its camera on the robot."""
-        self.server = viser.ViserServer(host=host, port=port, verbose=False)
-        if port != 0 and self.server.get_port() != port:  # lost a race for the port
-            self.server.stop()
-            raise ViewerError(f"port {port} on {host} is already in use; choose another "
-                              "with --port")
+        self.server = start_server(self.world, host=host, port=port)
         self.host, self.port = host, int(self.server.get_port())
-        eye, look = camera_for(self.world)
-        self.server.initial_camera.position = tuple(eye)
-        self.server.initial_camera.look_at = tuple(look)
 
     def _draw_world(self, show_spheres: bool, show_roadmap: bool, show_edges: bool) -> None:
         """The scene, the robot at the start, its spheres, the roadmap and the markers."""
@@ -295,7 +303,7 @@ class Viewer:
         def on_goal(event: Any) -> None:
             if event.phase != "end":
                 return
-            T = _pose_of(gizmo)
+            T = pose_of(gizmo)
             self.goal = Goal.pose(T)
             self.request_replan(plan_goal=True)
 
@@ -303,21 +311,17 @@ class Viewer:
 
     def _add_obstacle_gizmo(self, obj: SceneObject, T: Array) -> None:
         name = obj.name
-        wxyz, xyz = se3_to_wxyz_xyz(T)
-        gizmo = self.server.scene.add_transform_controls(f"/obstacles/{name}", scale=0.25,
-                                                         wxyz=wxyz, position=xyz)
-        self.handles[f"/obstacles/{name}/mesh"] = draw_object(
-            self.server, f"/obstacles/{name}/mesh", obj, np.eye(4))
-        self.handles[f"/obstacles/{name}"] = gizmo
-        self.obstacles[name] = gizmo
 
-        def on_move(event: Any) -> None:
+        def on_move(T_world_obj: Array) -> None:
             with self._lock:
-                self.world.move_obstacle(name, _pose_of(gizmo))
+                self.world.move_obstacle(name, T_world_obj)
             if self.handles["gui/live"].value:
                 self.request_replan()
 
-        gizmo.on_update(on_move)
+        gizmo, mesh = draw_draggable(self.server, obj, T, on_move)
+        self.handles[f"/obstacles/{name}/mesh"] = mesh
+        self.handles[f"/obstacles/{name}"] = gizmo
+        self.obstacles[name] = gizmo
 
     # --- GUI ----------------------------------------------------------------------------
     def _build_gui(self, show_spheres: bool, show_roadmap: bool, show_edges: bool) -> None:
@@ -448,10 +452,3 @@ class Viewer:
         with self._display:
             self.robot.show(q)
             self.spheres.show(q)
-
-
-def _pose_of(handle: Any) -> Array:
-    """T (4, 4) of a scene node from its wxyz / position."""
-    return make_transform(np.asarray(handle.position, dtype=float),
-                          quat_to_matrix(tuple(float(x) for x in handle.wxyz)))
-

@@ -3,6 +3,7 @@ meshes, the fast checker's spheres, the roadmap's end-effector graph, plan trace
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -11,6 +12,7 @@ from numpy.typing import NDArray
 
 from chekhov.roadmap.graph import Roadmap
 from chekhov.scene.model import SceneObject
+from chekhov.transforms import make_transform, quat_to_matrix
 from chekhov.viewer.meshes import (
     RobotMeshes,
     object_color,
@@ -40,6 +42,30 @@ def draw_object(server: viser.ViserServer, name: str, obj: SceneObject,
         name, V.astype(np.float32), F.astype(np.uint32), color=object_color(obj),
         opacity=0.75 if obj.dynamic else None, flat_shading=obj.shape.kind == "box",
         side="double" if obj.dynamic else "front", wxyz=wxyz, position=xyz)
+
+
+def pose_of(handle: Any) -> Array:
+    """T (4, 4) of a scene node from its wxyz / position."""
+    return make_transform(np.asarray(handle.position, dtype=float),
+                          quat_to_matrix(tuple(float(x) for x in handle.wxyz)))
+
+
+def draw_draggable(server: viser.ViserServer, obj: SceneObject, T: Array,
+                   on_move: Callable[[Array], None]
+                   ) -> tuple[viser.TransformControlsHandle, viser.MeshHandle]:
+    """A dynamic object under a transform gizmo at ``T`` (T_world_obj (4, 4), m), node
+    ``/obstacles/{name}``; ``on_move(T_world_obj)`` on every drag update. (gizmo, mesh)."""
+    name = obj.name
+    wxyz, xyz = se3_to_wxyz_xyz(T)
+    gizmo = server.scene.add_transform_controls(f"/obstacles/{name}", scale=0.25, wxyz=wxyz,
+                                                position=xyz)
+    mesh = draw_object(server, f"/obstacles/{name}/mesh", obj, np.eye(4))
+
+    def moved(_: Any) -> None:
+        on_move(pose_of(gizmo))
+
+    gizmo.on_update(moved)
+    return gizmo, mesh
 
 
 def draw_scene(server: viser.ViserServer, world: World) -> dict[str, Any]:
