@@ -86,9 +86,10 @@ def test_a_dragged_obstacle_is_sensed_and_the_reaction_latency_shown(viewer):
     loop = viewer.loop
     home = make_transform(np.array(viewer.handles["/obstacles/person_arm"].position))
 
-    def early_in_a_plan() -> bool:
-        s = loop.state
-        return s.mode == "plan" and s.motion is not None and s.motion.t_end - s.t > 1.0
+    def early_in_a_plan() -> bool:     # and nothing open: a new conflict would join that
+        s, ex = loop.state, loop.executor
+        return s.mode == "plan" and s.motion is not None and s.motion.t_end - s.t > 1.0 \
+            and ex is not None and all(r.t_resolved is not None for r in ex.reactions)
     assert _wait(early_in_a_plan, 60), (loop.state.mode, loop.error)
     s = loop.state
     assert s.motion is not None
@@ -104,8 +105,8 @@ def test_a_dragged_obstacle_is_sensed_and_the_reaction_latency_shown(viewer):
         assert _wait(sensed, 2.0), "the dragged obstacle never reached the executive"
 
         def answered() -> bool:
-            return any(r.kind == "obstacle" and r.t_observed >= s.t and r.t_reacted
-                       is not None for r in executor.reactions)
+            return any(r.kind == "obstacle" and r.t_reacted is not None
+                       and max(r.t_observed, r.t_reacted) >= s.t for r in executor.reactions)
         assert _wait(answered, 10.0), [(r.kind, r.t_observed, r.t_reacted)
                                        for r in executor.reactions]
         shown = re.compile(r"last reaction: \*\*(\w+)\*\* at [\d.]+ s — reacted in "
