@@ -106,7 +106,9 @@ def react_scene(world: World, config: ReactConfig,
             if entry is None:
                 results.append(None)
                 continue
-            results.append(_episode(world, planner, entry[0], config))
+            # the first planner's undisturbed run is the one that timed the script
+            reference = entry[1] if planner is planners[0] else None
+            results.append(_episode(world, planner, entry[0], config, reference))
             if progress is not None:
                 progress(f"{world.scene.name} {planner.name} episode {i + 1}/"
                          f"{config.episodes}")
@@ -114,10 +116,14 @@ def react_scene(world: World, config: ReactConfig,
     return out
 
 
-def _episode(world: World, planner: Planner, script: EpisodeScript, config: ReactConfig
-             ) -> EpisodeResult:
-    plain = run_one(world, planner, script.undisturbed(), config.undisturbed_limit_s, config)
-    t_plain = plain.t_reached
+def _episode(world: World, planner: Planner, script: EpisodeScript, config: ReactConfig,
+             t_plain: float | None = None) -> EpisodeResult:
+    """One scripted episode; ``t_plain``: its undisturbed duration (s) when already run with
+    this planner, else it is run here."""
+    if t_plain is None:
+        plain = run_one(world, planner, script.undisturbed(), config.undisturbed_limit_s,
+                        config)
+        t_plain = plain.t_reached
     deadline = config.deadline_factor * (t_plain or config.undisturbed_limit_s / 3) + \
         config.deadline_extra_s
     rec = run_one(world, planner, script, deadline, config)

@@ -79,7 +79,7 @@ def run_episode(world: World, executor: Executor, script: EpisodeScript, deadlin
         t = i * dt
         kicked = False
         while kicks and kicks[0].t <= t + 1e-9:
-            dq = _shrunk_kick(world, q, qd, kicks.pop(0).dq, config.kick_halvings,
+            dq = shrunk_kick(world, q, qd, kicks.pop(0).dq, config.kick_halvings,
                               executor.limits.acceleration)
             if dq is not None:
                 q, kicked = q + dq, True
@@ -106,7 +106,7 @@ def run_episode(world: World, executor: Executor, script: EpisodeScript, deadlin
         tuple(executor.reactions), executor.counters, tuple(applied))
 
 
-def _shrunk_kick(world: World, q: Array, qd: Array, dq: Array, halvings: int,
+def shrunk_kick(world: World, q: Array, qd: Array, dq: Array, halvings: int,
                  acceleration: Array) -> Array | None:
     """``dq`` (K,) rad, halved until q + dq is within the limits — and so is where it comes to
     rest braking at ``acceleration`` (K,) rad/s² from velocity ``qd`` (a bump does not throw

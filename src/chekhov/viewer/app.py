@@ -13,6 +13,7 @@ from __future__ import annotations
 import errno
 import socket
 import threading
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -83,6 +84,17 @@ def default_obstacle_pose(world: World) -> Array:
     Tb = world.robot.T_world_base
     T = make_transform((0.65, -0.45, 0.15), rotation_about((0.0, 1.0, 0.0), np.pi / 2))
     return np.asarray(Tb @ T, dtype=float)
+
+
+def serve_until_stopped(stop: threading.Event, close: Callable[[], None]) -> None:
+    """Block until ``stop`` is set or Ctrl-C, then ``close()``: a viewer's serve_forever."""
+    try:
+        while not stop.wait(0.5):
+            pass
+    except KeyboardInterrupt:
+        pass
+    finally:
+        close()
 
 
 def start_server(world: World, *, host: str, port: int) -> viser.ViserServer:
@@ -267,13 +279,7 @@ class Viewer:
 
     def serve_forever(self) -> None:
         """Block until Ctrl-C (or :meth:`close` from another thread)."""
-        try:
-            while not self._stop.wait(0.5):
-                pass
-        except KeyboardInterrupt:
-            pass
-        finally:
-            self.close()
+        serve_until_stopped(self._stop, self.close)
 
     def close(self) -> None:
         if self._stop.is_set():

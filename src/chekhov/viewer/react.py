@@ -33,7 +33,7 @@ from chekhov.execute.executor import Command, Executor, Observation, Reaction
 from chekhov.execute.motion import Motion
 from chekhov.execute.obstacles import MovingObstacle, Obstacles, obstacles_at
 from chekhov.execute.script import EpisodeScript, make_script, start_and_goal
-from chekhov.execute.simulate import SimConfig, _shrunk_kick
+from chekhov.execute.simulate import SimConfig, shrunk_kick
 from chekhov.execute.worker import ThreadWorker
 from chekhov.planners.base import Planner
 from chekhov.robot.goal import Goal
@@ -169,7 +169,7 @@ class LiveEpisode:
     def step(self, t: float, dragged: Obstacles) -> Command:
         """The executive's command for the tick at t (s), after what happened by then."""
         while self.kicks and self.kicks[0].t <= t + 1e-9:
-            dq = _shrunk_kick(self.world, self.q, self.qd, self.kicks.pop(0).dq,
+            dq = shrunk_kick(self.world, self.q, self.qd, self.kicks.pop(0).dq,
                               self.sim.kick_halvings, self.executor.limits.acceleration)
             if dq is not None:
                 self.q = self.q + dq

@@ -30,6 +30,7 @@ from chekhov.viewer.app import (
     OBSTACLE_SHAPE,
     ViewerError,
     check_port_free,
+    serve_until_stopped,
     start_server,
 )
 from chekhov.viewer.draw import (
@@ -142,13 +143,7 @@ class ReactViewer:
 
     def serve_forever(self) -> None:
         """Block until Ctrl-C (or :meth:`close` from another thread)."""
-        try:
-            while not self._stop.wait(0.5):
-                pass
-        except KeyboardInterrupt:
-            pass
-        finally:
-            self.close()
+        serve_until_stopped(self._stop, self.close)
 
     def close(self) -> None:
         """Stop drawing, the loop and the server."""
