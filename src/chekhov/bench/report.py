@@ -18,6 +18,7 @@ from chekhov.bench import paper_results as paper
 from chekhov.bench import plots
 from chekhov.bench.database import BenchDatabase
 from chekhov.bench.files import write_text
+from chekhov.bench.paper_claims import claims_section
 from chekhov.bench.summary import (
     ROADMAP,
     PlannerStats,
@@ -80,7 +81,8 @@ def write_report(db_path: str | Path, out_dir: str | Path) -> ReportFiles:
 def markdown(db_path: Path, stats: Stats, experiments: list[dict[str, Any]],
              configs: list[dict[str, Any]], rows: list[dict[str, Any]],
              images: list[str]) -> str:
-    """The report: how it was produced, the summary, the paper's Tables I–IV beside ours, the
+    """The report: how it was produced, the summary, the paper's Tables I–IV beside ours, its
+    qualitative claims re-checked and its path lengths beside ours (:mod:`.paper_claims`), the
     plots (``images``: file names beside the report), failure kinds and the planners'
     settings (``configs``: plannerConfigs rows; ``rows``: the runs)."""
     cases = {k: max(s.cases for s in v.values()) for k, v in stats.items()}
@@ -88,7 +90,8 @@ def markdown(db_path: Path, stats: Stats, experiments: list[dict[str, Any]],
          *_how_produced(db_path, stats, experiments, cases),
          "## Summary\n", _summary_table(stats), *_targets_section(stats),
          "\n" + _table_i(stats), "\n" + _table_ii(stats), "\n" + _table_iii(stats),
-         "\n" + _table_iv(stats), "\n## Plots\n", *(f"![{n}]({n})\n" for n in images),
+         "\n" + _table_iv(stats), "", *claims_section(stats, rows),
+         "\n## Plots\n", *(f"![{n}]({n})\n" for n in images),
          *_failure_kinds(stats), *_configurations(configs, rows)]
     scenes = sorted({k.scene for k in stats})
     planners = plots.planner_order(sorted({n for v in stats.values() for n in v}))
