@@ -10,7 +10,15 @@ import pytest
 from chekhov.cli import main
 from chekhov.execute.benchmark import ReactConfig, executive_planner, run_one
 from chekhov.execute.evaluate import evaluate_episode, limit_violations
-from chekhov.execute.motion import State, brake_along, join, ruckig_piece, trajectory_motion
+from chekhov.execute.motion import (
+    Bounds,
+    State,
+    brake_along,
+    join,
+    ruckig_piece,
+    stop_from,
+    trajectory_motion,
+)
 from chekhov.execute.obstacles import MovingObstacle
 from chekhov.execute.script import EpisodeScript, GoalChange, Kick, make_script, start_and_goal
 from chekhov.execute.simulate import EpisodeRecord
@@ -93,6 +101,49 @@ def test_brake_along_stays_on_the_path_and_stops_within_limits(world, limits):
     assert np.all(np.diff(d.argmin(axis=1)) >= 0)             # never backwards
     assert _fd_ok(ts, Q, V, limits, slack=1e-3)
     assert np.allclose(brake.sample(t0).qd, motion.sample(t0).qd, atol=1e-9)
+
+
+def test_brake_along_a_stiff_join_keeps_every_acceleration_within_the_limits(world, limits):
+    """A brake of a Ruckig join (20x the timing's jerk: its acceleration changes fast) commands
+    the exact state of its time scaling: accelerations within the limits at every instant,
+    finite differences of the velocities too."""
+    robot, rng = world.robot, np.random.default_rng(2)
+    worst = 0.0
+    for _ in range(40):
+        P = robot.lower + rng.uniform(0.1, 0.9, (2, robot.dof)) * (robot.upper - robot.lower)
+        traj = time_parameterize(P, robot.joint_names, limits, TimingConfig(method="ruckig"))
+        start = State(P[0] + rng.uniform(-0.05, 0.05, robot.dof),
+                      rng.uniform(-0.6, 0.6, robot.dof) * limits.velocity,
+                      rng.uniform(-1, 1, robot.dof) * limits.acceleration)
+        joined = join(start, 0.0, trajectory_motion(traj.trajectory, 0.0), 0.2, limits)
+        assert joined is not None
+        t0 = float(rng.uniform(0, joined.pieces[0].t_end))
+        brake = brake_along(joined, t0, limits)
+        ts, Q, V = _sampled(brake, t0, brake.t_end + 0.02, 2e-4)
+        A = np.array([brake.sample(float(t)).qdd for t in ts])
+        worst = max(worst, float((np.abs(A) / limits.acceleration).max()))
+        assert _fd_ok(ts[::50], Q[::50], V[::50], limits)
+        assert np.abs(brake.end.qd).max() < 1e-9
+    assert worst <= 1 + 1e-9
+
+
+def test_a_stop_after_a_kick_stays_within_the_position_limits(world, limits):
+    """Ruckig does not keep position limits; a stop from a joint rushing at its upper limit
+    (accelerating towards it, room to stop at full deceleration) stays within them."""
+    robot = world.robot
+    mid = (robot.lower + robot.upper) / 2
+    qd = np.where(np.arange(robot.dof) % 2 == 0, 1.0, -1.2) * np.minimum(limits.velocity, 1.2)
+    qd[0] = 1.2
+    q = mid.copy()
+    q[0] = robot.upper[0] - qd[0] ** 2 / (2 * limits.acceleration[0]) - 0.003
+    qdd = np.zeros(robot.dof)
+    qdd[0] = limits.acceleration[0]
+    bounds = Bounds(robot.lower, robot.upper)
+    stop = stop_from(State(q, qd, qdd), 0.0, limits, bounds)
+    ts, Q, V = _sampled(stop, 0.0, stop.t_end + 0.01)
+    assert robot.within_limits(Q, tol=1e-6).all(), float((Q - robot.upper).max())
+    assert np.abs(stop.end.qd).max() < 1e-9
+    assert _fd_ok(ts, Q, V, limits)
 
 
 def _script(world, index, **kw):

@@ -5,7 +5,11 @@ end on the executive's clock, and the three ways the executive makes one:
   Ruckig (jerk-limited, time-optimal, Berscheid & Kröger 2021): the trajectory's state some
   time into it is the target, so velocity and acceleration never jump;
 * :func:`brake_along`: to rest **along the path** the arm is on, as fast as the limits allow
-  (a time scaling s(t) of the current motion, decelerating greedily at each step);
+  (a time scaling s(t) of the current motion, decelerating greedily at each step; the
+  commanded state is the scaling's exact one, so positions stay on the path and within the
+  joint limits where it is);
+* :func:`stop_from`: to rest off any path (after a kick), each joint braking on its own and
+  kept within the joint position limits;
 * :func:`hold`: at rest at a configuration.
 
 Units: rad, rad/s, rad/s², s. A motion's times are absolute (the executive's clock).
@@ -32,8 +36,18 @@ acceleration limits still hold)."""
 BRAKE_DT_S = 0.002
 """s, the step of the braking time scaling."""
 BRAKE_SHARE = 0.85
-"""The share of the acceleration limits a brake uses: its greedy steps and their
-interpolation stay within the limits."""
+"""The share of the acceleration limits a brake's greedy steps aim at (at the start of each
+step; :data:`BRAKE_END_SHARE` at its end)."""
+BRAKE_END_SHARE = 0.95
+"""The share of the acceleration limits a brake step may reach at its end (a step is
+halved until it does): a margin for the finite-difference checks of the executed motion."""
+BRAKE_GRID_S = 5e-4
+"""s, the grid of the braked motion's own time on which a brake reads q̇ and q̈."""
+BRAKE_CHUNK_S = 0.25
+"""s, how much of that grid is sampled at once."""
+STOP_JERK_SCALE = 1e5
+"""A stop's jerk limit when the join's would carry a joint past its position limit: this ×
+the timing's (near a step in acceleration; accelerations still within their limits)."""
 
 
 class Bounds(NamedTuple):
@@ -58,8 +72,9 @@ class State(NamedTuple):
 
 Sampler = Callable[[float], State]
 """A piece's state at a time (s) from the piece's own start."""
-Batch = Callable[[Array], Array]
-"""A piece's positions (N, K) rad at times (N,) s from its start (vectorised)."""
+Batch = Callable[[Array], tuple[Array, Array, Array]]
+"""A piece's states at times (N,) s from its start (vectorised): q (N, K) rad, q̇ (N, K)
+rad/s, q̈ (N, K) rad/s²."""
 
 
 @dataclass(frozen=True)
@@ -72,12 +87,14 @@ class Piece:
     kind: str
     batch: Batch | None = None
 
-    def positions(self, ts: Array) -> Array:
-        """Positions (N, K) rad at clock times ts (N,) s within the piece."""
+    def states(self, ts: Array) -> tuple[Array, Array, Array]:
+        """(q, q̇, q̈), each (N, K), at clock times ts (N,) s within the piece."""
         local = np.clip(ts - self.t_start, 0.0, self.t_end - self.t_start)
         if self.batch is not None:
             return self.batch(local)
-        return np.array([self.sample(float(u)).q for u in local])
+        S = [self.sample(float(u)) for u in local]
+        return (np.array([x.q for x in S]), np.array([x.qd for x in S]),
+                np.array([x.qdd for x in S]))
 
 
 @dataclass(frozen=True)
@@ -126,16 +143,25 @@ class Motion:
         """(times (N,), positions (N, K)) every ``dt`` s from t0 to t1 (both included)."""
         ts = np.arange(t0, t1, dt)
         ts = np.append(ts, t1) if len(ts) == 0 or ts[-1] < t1 else ts
-        Q = np.empty((len(ts), len(self.pieces[0].sample(0.0).q)))
+        return ts, self.states_at(ts)[0]
+
+    def states_at(self, ts: Array) -> tuple[Array, Array, Array]:
+        """(q, q̇, q̈), each (N, K), at clock times ts (N,) s (like :meth:`sample`; after the
+        end at rest at its last position)."""
+        k = len(self.pieces[0].sample(0.0).q)
+        out = (np.empty((len(ts), k)), np.zeros((len(ts), k)), np.zeros((len(ts), k)))
         done = np.zeros(len(ts), dtype=bool)
         for p in self.pieces:
             m = ~done & (ts < p.t_end)
             if p is self.pieces[-1]:
                 m = ~done
             if m.any():
-                Q[m] = p.positions(ts[m])
+                for a, b in zip(out, p.states(ts[m]), strict=True):
+                    a[m] = b
                 done |= m
-        return ts, Q
+        after = ts > self.t_end
+        out[1][after], out[2][after] = 0.0, 0.0
+        return out
 
     def until(self, t: float) -> Motion:
         """This motion up to time t: the pieces that start before t, the last one cut at t."""
@@ -181,8 +207,8 @@ def trajectory_motion(traj: JointTrajectory, t0: float, *, offset: float = 0.0,
         q, qd, qdd = traj.sample(offset + t)
         return State(q, qd, qdd)
 
-    def batch(ts: Array) -> Array:
-        return traj.sample(offset + ts)[0]
+    def batch(ts: Array) -> tuple[Array, Array, Array]:
+        return traj.sample(offset + ts)
     return Motion((Piece(t0, t0 + max(traj.duration - offset, 0.0), sample, kind, batch),))
 
 
@@ -206,8 +232,9 @@ def join(start: State, t0: float, target: Motion, t_target: float, limits: Limit
 
 def ruckig_piece(start: State, goal: State, t0: float, limits: Limits, kind: str,
                  bounds: Bounds | None = None) -> Piece | None:
-    """The time-optimal jerk-limited piece from ``start`` to ``goal`` starting at t0, within
-    the joint position ``bounds`` when given."""
+    """The time-optimal jerk-limited piece from ``start`` to ``goal`` starting at t0. The
+    joint position ``bounds`` are handed to Ruckig, but the community Ruckig does not keep
+    them (a piece may pass a limit): callers check the positions."""
     dof = len(start.q)
     inp = InputParameter(dof)
     _bound(inp, bounds)
@@ -237,26 +264,20 @@ def ruckig_piece(start: State, goal: State, t0: float, limits: Limits, kind: str
 def stop_from(start: State, t0: float, limits: Limits, bounds: Bounds | None = None
               ) -> Motion:
     """To rest from ``start`` (off any path: after a kick) by Ruckig's velocity interface,
-    each joint braking at once (within the position ``bounds`` when given)."""
-    from ruckig import ControlInterface
-    dof = len(start.q)
-    inp = InputParameter(dof)
-    _bound(inp, bounds)
-    inp.control_interface = ControlInterface.Velocity
-    inp.current_position, inp.current_velocity = list(start.q), list(start.qd)
-    inp.current_acceleration = list(np.clip(start.qdd, -limits.acceleration,
-                                            limits.acceleration))
-    inp.target_velocity, inp.target_acceleration = [0.0] * dof, [0.0] * dof
-    inp.max_velocity = list(limits.velocity)
-    inp.max_acceleration = list(limits.acceleration)
-    inp.max_jerk = list(limits.jerk * JOIN_JERK_SCALE)
-    traj = Trajectory(dof)
-    try:
-        Ruckig(dof).calculate(inp, traj)
-    except Exception:   # ruckig.RuckigError: a joint too near its bound to stop within it
-        if bounds is None:
-            raise
-        return stop_from(start, t0, limits, None)
+    each joint braking at once on its own (no time synchronisation: the shortest stop of
+    every joint). Ruckig does not enforce position limits, so with ``bounds`` a stop that
+    would pass one is made again with :data:`STOP_JERK_SCALE` × the jerk (the acceleration
+    limits still hold; only a stop that no braking within them keeps inside is left out)."""
+    best: tuple[float, Trajectory] | None = None
+    for scale in (JOIN_JERK_SCALE, STOP_JERK_SCALE):
+        traj = _velocity_stop(start, limits, scale)
+        over = 0.0 if bounds is None else _overshoot(traj, bounds)
+        if best is None or over < best[0]:
+            best = (over, traj)
+        if over <= 0.0:
+            break
+    assert best is not None
+    traj = best[1]
 
     def sample(t: float) -> State:
         q, qd, qdd = traj.at_time(min(max(t, 0.0), traj.duration))
@@ -264,46 +285,138 @@ def stop_from(start: State, t0: float, limits: Limits, bounds: Bounds | None = N
     return Motion((Piece(t0, t0 + traj.duration, sample, "brake"),))
 
 
+def _velocity_stop(start: State, limits: Limits, jerk_scale: float) -> Trajectory:
+    """Ruckig's unsynchronised stop from ``start`` at ``jerk_scale`` × the jerk limits."""
+    from ruckig import ControlInterface, Synchronization
+    dof = len(start.q)
+    inp = InputParameter(dof)
+    inp.control_interface = ControlInterface.Velocity
+    inp.synchronization = Synchronization.No
+    inp.current_position, inp.current_velocity = list(start.q), list(start.qd)
+    inp.current_acceleration = list(np.clip(start.qdd, -limits.acceleration,
+                                            limits.acceleration))
+    inp.target_velocity, inp.target_acceleration = [0.0] * dof, [0.0] * dof
+    inp.max_velocity = list(limits.velocity)
+    inp.max_acceleration = list(limits.acceleration)
+    inp.max_jerk = list(limits.jerk * jerk_scale)
+    traj = Trajectory(dof)
+    Ruckig(dof).calculate(inp, traj)
+    return traj
+
+
+def _overshoot(traj: Trajectory, bounds: Bounds) -> float:
+    """rad, how far the Ruckig trajectory goes past ``bounds`` at most (0 when it does not)."""
+    ext = traj.position_extrema
+    lo = np.array([e.min for e in ext])
+    hi = np.array([e.max for e in ext])
+    return float(max(np.max(bounds.lower - lo), np.max(hi - bounds.upper), 0.0))
+
+
+@dataclass(frozen=True, eq=False)
+class _Scaling:
+    """A braking time scaling: from clock times ``t`` (N,) s on, the path parameter (the
+    braked motion's own time) is ``s`` (N,) s at rate ``sd`` (N,) and decreases its rate at
+    ``sdd`` (N,) 1/s until the next time (constant within each step); at rest after the
+    last."""
+
+    motion: Motion
+    t: Array
+    s: Array
+    sd: Array
+    sdd: Array
+
+    def _at(self, u: Array) -> tuple[Array, Array, Array]:
+        """(s, ṡ, -s̈), each (N,), at times u (N,) s from the scaling's start."""
+        k = np.clip(np.searchsorted(self.t, u, side="right") - 1, 0, len(self.t) - 1)
+        last = k == len(self.t) - 1
+        tau = np.where(last, 0.0, np.clip(u - self.t[k], 0.0, None))
+        sdd = np.where(last, 0.0, self.sdd[k])
+        s = np.minimum(self.s[k] + self.sd[k] * tau - 0.5 * sdd * tau * tau, self.motion.t_end)
+        return s, np.maximum(self.sd[k] - sdd * tau, 0.0), sdd
+
+    def sample(self, u: float) -> State:
+        s, sd, sdd = (float(x[0]) for x in self._at(np.array([u])))
+        m = self.motion.sample(s)
+        return State(m.q, m.qd * sd, m.qdd * sd * sd - m.qd * sdd)
+
+    def batch(self, us: Array) -> tuple[Array, Array, Array]:
+        s, sd, sdd = self._at(np.asarray(us, dtype=float))
+        Q, V, A = self.motion.states_at(s)
+        return Q, V * sd[:, None], A * (sd * sd)[:, None] - V * sdd[:, None]
+
+
+class _Grid:
+    """The braked motion's q̇ and q̈ on a grid of its own time every :data:`BRAKE_GRID_S`
+    from ``s0`` (filled in chunks of :data:`BRAKE_CHUNK_S` as needed), interpolated
+    linearly: a brake's steps need them at 300-odd times, one by one."""
+
+    def __init__(self, motion: Motion, s0: float) -> None:
+        self.motion, self.s0 = motion, s0
+        k = len(motion.sample(s0).q)
+        self.V, self.A = np.empty((0, k)), np.empty((0, k))
+
+    def at(self, s: float) -> State:
+        x = (s - self.s0) / BRAKE_GRID_S
+        i = int(x)
+        while i + 1 >= len(self.V):
+            n = len(self.V)
+            k = np.arange(n, n + round(BRAKE_CHUNK_S / BRAKE_GRID_S), dtype=float)
+            ts = self.s0 + BRAKE_GRID_S * k
+            _, V, A = self.motion.states_at(ts)
+            self.V, self.A = np.vstack([self.V, V]), np.vstack([self.A, A])
+        f = x - i
+        v = self.V[i] + f * (self.V[i + 1] - self.V[i])
+        return State(v, v, self.A[i] + f * (self.A[i + 1] - self.A[i]))
+
+
 def brake_along(motion: Motion, t0: float, limits: Limits) -> Motion:
     """``motion`` from clock time t0, slowed to rest along its own path as fast as the limits
-    allow: s(t) with ṡ(t0) = 1 and s̈ ≤ 0 the most negative keeping every joint's acceleration
-    q̈(s) ṡ² + q̇(s) s̈ within its limit (q̇, q̈ the motion's own), stepped every
-    :data:`BRAKE_DT_S`. The positions stay on the motion's path; the velocity (q̇ ṡ) never
-    exceeds the motion's own."""
+    allow: s(t) with ṡ(t0) = 1 and s̈ ≤ 0, constant over each :data:`BRAKE_DT_S` step and the
+    most negative keeping every joint's acceleration q̈(s) ṡ² + q̇(s) s̈ within
+    :data:`BRAKE_SHARE` of its limit at the start of the step and :data:`BRAKE_END_SHARE` at
+    its end (q̇, q̈ the motion's own; a step is halved until it is). The commanded state is
+    the exact one of that scaling: positions on the motion's path (within the joint limits
+    where it is), velocity q̇ ṡ never above the motion's own."""
+    a, end_a = limits.acceleration * BRAKE_SHARE, limits.acceleration * BRAKE_END_SHARE
+    t_end = motion.t_end
+    grid = _Grid(motion, t0)
+    ts, ss, sds, sdds = [0.0], [t0], [1.0], []
     s, sd = t0, 1.0
-    times, Q, V = [0.0], [], []
-    first = motion.sample(t0)
-    Q.append(first.q)
-    V.append(first.qd)
-    while sd > 0 and s < motion.t_end:
-        m = motion.sample(s)
-        sdd = _deceleration(m, sd, limits.acceleration * BRAKE_SHARE)
+    while sd > 0 and s < t_end:
+        sdd = _deceleration(grid.at(s), sd, a)
         step = min(BRAKE_DT_S, sd / sdd) if sdd > 0 else BRAKE_DT_S
-        if step < 1e-6:
-            break
-        s = s + sd * step - 0.5 * sdd * step * step
-        sd = max(sd - sdd * step, 0.0)
-        n = motion.sample(min(s, motion.t_end))
-        times.append(times[-1] + step)
-        Q.append(n.q)
-        V.append(n.qd * sd)
-    V[-1] = np.zeros_like(V[-1])
-    traj = JointTrajectory.from_velocities(tuple(f"j{i}" for i in range(len(first.q))),
-                                           np.array(times), np.array(Q), np.array(V))
-    return trajectory_motion(traj, t0, kind="brake")
+        for _ in range(5):
+            s2 = min(s + sd * step - 0.5 * sdd * step * step, t_end)
+            sd2 = max(sd - sdd * step, 0.0)
+            if sdd == 0.0 or _within(grid.at(s2), sd2, sdd, end_a):
+                break
+            step *= 0.5
+        sdds.append(sdd)
+        ts.append(ts[-1] + step)
+        s, sd = s2, (0.0 if sd2 < 1e-9 or s2 >= t_end else sd2)
+        ss.append(s)
+        sds.append(sd)
+    sdds.append(0.0)
+    sds[-1] = 0.0
+    scaling = _Scaling(motion, np.array(ts), np.array(ss), np.array(sds), np.array(sdds))
+    return Motion((Piece(t0, t0 + ts[-1], scaling.sample, "brake", scaling.batch),))
+
+
+def _within(m: State, sd: float, sdd: float, a: Array) -> bool:
+    """Whether q̈ ṡ² - q̇ s̈ is within ``a`` (K,) rad/s² at state ``m`` of the path."""
+    return bool(np.all(np.abs(m.qdd * sd * sd - m.qd * sdd) <= a))
 
 
 def _deceleration(m: State, sd: float, a: Array) -> float:
     """The largest k ≥ 0 with |q̈ ṡ² - q̇ k| ≤ a (K,) for every joint (0 when none is)."""
-    base = m.qdd * sd * sd
-    hi = np.inf
-    lo = 0.0
-    for v, b, lim in zip(m.qd, base, a, strict=True):
-        if abs(v) < 1e-9:
-            continue
-        k1, k2 = (b - lim) / v, (b + lim) / v
-        lo, hi = max(lo, min(k1, k2)), min(hi, max(k1, k2))
-    return float(hi) if hi >= lo and np.isfinite(hi) else 0.0
+    moving = np.abs(m.qd) >= 1e-9
+    if not moving.any():
+        return 0.0
+    v, b, lim = m.qd[moving], m.qdd[moving] * sd * sd, a[moving]
+    k1, k2 = (b - lim) / v, (b + lim) / v
+    lo = max(float(np.minimum(k1, k2).max()), 0.0)
+    hi = float(np.maximum(k1, k2).min())
+    return hi if hi >= lo and np.isfinite(hi) else 0.0
 
 
 def stop_time(state: State, limits: Limits) -> float:
