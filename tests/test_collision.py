@@ -201,24 +201,34 @@ def test_primitive_confirmation_never_misses_a_coal_collision():
     assert free_found > 1000
 
 
-@pytest.mark.parametrize("scene", ["shelf_boxes", "kitchen"])
+@pytest.mark.parametrize("scene", ["shelf_boxes", "kitchen", "panda_cage"])
 def test_dense_path_check_equals_checking_every_configuration(world_of, scene):
-    """Certified skipping gives the same first colliding index as checking all of
-    densify(path, 100) with the fast checker, on free and colliding paths."""
+    """Certified skipping (bounding-sphere and per-sphere certificates) gives the same first
+    colliding index as checking all of densify(path, 100) with the fast checker, on free and
+    colliding paths, without and with a dynamic obstacle beside the arm."""
     from chekhov.collision.exact import densify
 
     w = world_of(scene)
     rng = np.random.default_rng(5)
     Q = w.robot.sample_uniform(rng, 2000)
     Q = Q[w.fast.valid(Q)]
+    T = np.eye(4)
+    T[:3, 3] = w.robot.compute_ee_pose(Q[0])[:3, 3] + np.array([0.0, 0.0, 0.12])
     kinds = set()
-    for i in range(0, 40, 2):
-        scale = 1.0 if i % 4 == 0 else 0.3
-        P = np.linspace(Q[i], Q[i] + scale * (Q[i + 1] - Q[i]), 12)
-        v = w.fast.valid(densify(P, 100))
-        ref = None if v.all() else int(np.flatnonzero(~v)[0])
-        assert w.fast.first_dense_collision(P, 100) == ref
-        kinds.add(ref is None)
+    for dynamic in (False, True):
+        if dynamic:
+            w.add_obstacle("probe", Shape("sphere", (0.06,)), T)
+        try:
+            for i in range(0, 40, 2):
+                scale = 1.0 if i % 4 == 0 else 0.3
+                P = np.linspace(Q[i], Q[i] + scale * (Q[i + 1] - Q[i]), 12)
+                v = w.fast.valid(densify(P, 100))
+                ref = None if v.all() else int(np.flatnonzero(~v)[0])
+                assert w.fast.first_dense_collision(P, 100) == ref, (dynamic, i)
+                kinds.add(ref is None)
+        finally:
+            if dynamic:
+                w.remove_obstacle("probe")
     assert kinds == {True, False}
 
 

@@ -7,7 +7,14 @@ gets a clearance certificate when its bounding sphere is clear of everything by 
 obstacles): since the centre moves by at most D_g = Σ_i |δq_i| L_gi per substep (δq the
 substep's joint step, L_gi a bound on the distance from joint i to c_g that holds in every
 configuration), the group stays clear for floor(d / D_g) substeps. Self-collision pairs get
-certificates the same way, against D_a + D_b. A configuration whose groups and pairs are all
+certificates the same way, against D_a + D_b. A group whose bounding sphere is not clear tries
+its own spheres: each sphere's centre lies within r_g of c_g, so moves by at most
+S_g = Σ_i |δq_i| (L_gi + r_g) per substep, and when every sphere s is clear by d_s > 0 the
+group stays clear for floor(min_s d_s / S_g) substeps (a self pair likewise, from its sphere
+pairs' gaps, against S_a + S_b). Near obstacles — a hand at a pre-grasp, an elbow beside a
+shelf — the bounding sphere touches while the spheres are centimetres clear: measured on the
+task cases' certifications, 41% (shelf) to 60% (Panda cage) of the samples needed the full
+check with bounding spheres alone. A configuration whose groups and pairs are all
 certified is free for the fast checker; any other is checked in full by
 :func:`validity.collisions`. So the answer is the same as checking every configuration
 with the fast checker, at a fraction of the cost. The lever-arm bounds L_gi are
@@ -31,16 +38,20 @@ from chekhov.robot.chain_kinematics import chain_fk_arrays
 class WalkWork(NamedTuple):
     """Work arrays of :func:`_walk`: until (G,) / puntil (P,) int64, the last substep each
     group / self pair is certified free to; step_len (G,) m, the most a group's centre moves
-    in one substep; q (K,); Rc (K, 3, 3), pc (K, 3), gwc (G, 3): joint poses and group
-    centres."""
+    in one substep, and sphere_step (G,) m the most any of its spheres' centres does; q (K,);
+    Rc (K, 3, 3), pc (K, 3), gwc (G, 3): joint poses and group centres; swc (S, 3) sphere
+    centres, valid for the substep in swc_at (G,) int64 (per group)."""
 
     until: np.ndarray
     puntil: np.ndarray
     step_len: np.ndarray
+    sphere_step: np.ndarray
     q: np.ndarray
     Rc: np.ndarray
     pc: np.ndarray
     gwc: np.ndarray
+    swc: np.ndarray
+    swc_at: np.ndarray
 
 
 @njit(cache=True, inline="always")
@@ -63,6 +74,46 @@ def _group_centres(q, parent, R0, p0, axis, gc, gj, Rc, pc, gwc):  # pragma: no 
                          + Rc[j, a, 2] * gc[g, 2] + pc[j, a])
 
 
+@njit(cache=True, inline="always")
+def _point_clearance(origin, ih, h, delta, V, fix, dk, dR, dp, ds, c):  # pragma: no cover
+    """A lower bound (m) on the distance from point c to the static obstacles, the fixed
+    robot part grid ``fix`` (-1: none) and the dynamic obstacles (exact)."""
+    d = _grid_lower_bound(origin, ih, h, delta, V, 0, c)
+    if fix >= 0:
+        d = min(d, _grid_lower_bound(origin, ih, h, delta, V, fix, c))
+    for o in range(dk.shape[0]):
+        d = min(d, signed_distance(dk[o], dR[o], dp[o], ds[o], c))
+    return d
+
+
+@njit(cache=True, inline="always")
+def _sphere_centres(g, m, start, sc, sj, Rc, pc, swc, swc_at):  # pragma: no cover - compiled
+    """World centres swc of group g's spheres at substep m (once per substep and group; the
+    joint poses Rc, pc must be those of substep m)."""
+    if swc_at[g] == m:
+        return
+    swc_at[g] = m
+    for s in range(start[g], start[g + 1]):
+        j = sj[s]
+        for a in range(3):
+            swc[s, a] = (Rc[j, a, 0] * sc[s, 0] + Rc[j, a, 1] * sc[s, 1]
+                         + Rc[j, a, 2] * sc[s, 2] + pc[j, a])
+
+
+@njit(cache=True, inline="always")
+def _pair_gap(start, sr, swc, a, b):  # pragma: no cover - compiled
+    """The smallest gap (m) between a sphere of group a and one of group b (≤ 0: overlap)."""
+    gap = np.inf
+    for s in range(start[a], start[a + 1]):
+        for t in range(start[b], start[b + 1]):
+            d = np.sqrt((swc[s, 0] - swc[t, 0]) ** 2 + (swc[s, 1] - swc[t, 1]) ** 2
+                        + (swc[s, 2] - swc[t, 2]) ** 2) - sr[s] - sr[t]
+            gap = min(gap, d)
+            if gap <= 0.0:
+                return gap
+    return gap
+
+
 @njit(cache=True)
 def _walk(P0, P1, n, m_first, m_last, check_ends, world, work, ww
           ):  # pragma: no cover - compiled
@@ -75,20 +126,29 @@ def _walk(P0, P1, n, m_first, m_last, check_ends, world, work, ww
     chain, groups, grids, dyn = world.chain, world.groups, world.grids, world.dynamic
     parent, R0, p0, axis = chain.parent, chain.R_parent_joint, chain.p_parent_joint, chain.axis
     gc, gj, gr, lever = groups.centre, groups.joint, groups.radius, groups.lever
+    start, sc, sr, sj = groups.start, world.spheres.centre, world.spheres.radius, \
+        world.spheres.joint
     self_pairs = groups.self_pairs
     origin, h, ih, delta, V, gfix = (grids.origin, grids.h, grids.inv_h, grids.delta,
                                      grids.fine, grids.fixed)
     dk, dR, dp, ds = dyn.kind, dyn.R, dyn.p, dyn.size
-    until, puntil, step_len, q, Rc, pc, gwc = ww
+    until, puntil, step_len, sphere_step, q, Rc, pc, gwc, swc, swc_at = ww
     q_row = q.reshape((1, K))   # q, as the one row validity.collisions checks
     hit = np.empty(1, dtype=np.bool_)
     G = gr.shape[0]
     for g in range(G):
         until[g] = -1
+        swc_at[g] = -1
         s_ = 0.0
         for i in range(K):
             s_ += abs(P1[i] - P0[i]) * lever[g, i]
         step_len[g] = s_ / max(n, 1) + 1e-12
+        r_ = 0.0
+        i = gj[g]
+        while i >= 0:   # the joints that move the group, each by at most its lever + r_g
+            r_ += abs(P1[i] - P0[i]) * (lever[g, i] + gr[g])
+            i = parent[i]
+        sphere_step[g] = r_ / max(n, 1) + 1e-12
     for k in range(self_pairs.shape[0]):
         puntil[k] = -1
     for m in range(m_first, m_last + 1):
@@ -102,16 +162,21 @@ def _walk(P0, P1, n, m_first, m_last, check_ends, world, work, ww
             if chain_needed:
                 _group_centres(q, parent, R0, p0, axis, gc, gj, Rc, pc, gwc)
                 chain_needed = False
-            # a lower bound on the clearance of g's bounding sphere: static obstacles and its
-            # fixed parts (grids), dynamic obstacles (exact)
-            d = _grid_lower_bound(origin, ih, h, delta, V, 0, gwc[g])
-            if gfix[g] >= 0:
-                d = min(d, _grid_lower_bound(origin, ih, h, delta, V, gfix[g], gwc[g]))
-            for o in range(dk.shape[0]):
-                d = min(d, signed_distance(dk[o], dR[o], dp[o], ds[o], gwc[g]))
-            d -= gr[g]
+            # a lower bound on the clearance of g's bounding sphere, then of its spheres
+            d = _point_clearance(origin, ih, h, delta, V, gfix[g], dk, dR, dp, ds, gwc[g]) \
+                - gr[g]
             if d > 0.0:
                 until[g] = m + int(d / step_len[g])
+                continue
+            _sphere_centres(g, m, start, sc, sj, Rc, pc, swc, swc_at)
+            d = np.inf
+            for s in range(start[g], start[g + 1]):
+                d = min(d, _point_clearance(origin, ih, h, delta, V, gfix[g], dk, dR, dp, ds,
+                                            swc[s]) - sr[s])
+                if d <= 0.0:
+                    break
+            if d > 0.0:
+                until[g] = m + int(d / sphere_step[g])
             else:
                 need_full = True
         for k in range(self_pairs.shape[0]):
@@ -126,6 +191,12 @@ def _walk(P0, P1, n, m_first, m_last, check_ends, world, work, ww
                         + (gwc[a, 2] - gwc[b, 2]) ** 2) - gr[a] - gr[b]
             if d > 0.0:
                 puntil[k] = m + int(d / (step_len[a] + step_len[b]))
+                continue
+            _sphere_centres(a, m, start, sc, sj, Rc, pc, swc, swc_at)
+            _sphere_centres(b, m, start, sc, sj, Rc, pc, swc, swc_at)
+            d = _pair_gap(start, sr, swc, a, b)
+            if d > 0.0:
+                puntil[k] = m + int(d / (sphere_step[a] + sphere_step[b]))
             else:
                 need_full = True
         if not need_full:
@@ -141,9 +212,11 @@ def _walk(P0, P1, n, m_first, m_last, check_ends, world, work, ww
 def make_walk_work(K, world):  # pragma: no cover - compiled
     """A :class:`WalkWork` for ``world`` and K joints."""
     G = world.groups.radius.shape[0]
+    S = world.spheres.radius.shape[0]
     return WalkWork(np.empty(G, dtype=np.int64),
                     np.empty(world.groups.self_pairs.shape[0], dtype=np.int64), np.empty(G),
-                    np.empty(K), np.empty((K, 3, 3)), np.empty((K, 3)), np.empty((G, 3)))
+                    np.empty(G), np.empty(K), np.empty((K, 3, 3)), np.empty((K, 3)),
+                    np.empty((G, 3)), np.empty((S, 3)), np.empty(G, dtype=np.int64))
 
 
 @njit(cache=True, inline="always")
