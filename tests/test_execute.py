@@ -211,6 +211,75 @@ def test_scripted_episodes_never_collide_with_the_true_forearm(world, planner, l
     assert reached >= 2
 
 
+def test_an_arm_at_rest_beside_a_still_obstacle_gets_its_plan(world, planner, limits):
+    """A forearm standing still 2 cm from the resting arm (inside the 4 cm margin, no
+    contact): evading finds nothing to do, and the plan asked for is not cancelled by it
+    (it had been, on every sensor frame: the arm never left)."""
+    from chekhov.execute.evaluate import TrueWorld
+    from chekhov.execute.executor import Executor, Observation
+    from chekhov.execute.obstacles import obstacles_at
+    from chekhov.execute.worker import InlineWorker
+    q0, goal = start_and_goal(world, 0, 0)
+    elbow = world.robot.compute_joint_placements(q0)[3, :3, 3]
+
+    def ball(d):
+        p = elbow + np.array([0.0, 0.0, d])
+        return MovingObstacle("ball", Shape("sphere", (0.05,)), np.eye(3), p,
+                              p + np.array([1e-9, 0.0, 0.0]), 0.0, 1e-12)
+    lo, hi = 0.0, 0.5                       # the height at which the ball is 2 cm clear
+    for _ in range(30):
+        mid = (lo + hi) / 2
+        clear = TrueWorld(world, (ball(mid),)).clearance(q0, 0.0)
+        lo, hi = (mid, hi) if clear < 0.02 else (lo, mid)
+    still = (ball(hi),)
+    executor = Executor(world, InlineWorker(world, planner, CONFIG.executor.timing), goal,
+                        CONFIG.executor)
+    q, qd = q0.copy(), np.zeros_like(q0)
+    for i in range(300):
+        t = i * DT
+        frame = obstacles_at(still, t - 0.04) if i % 3 == 0 and t >= 0.04 else None
+        cmd = executor.step(Observation(t, q, qd, frame, t - 0.04 if frame else None))
+        q, qd = cmd.q, cmd.qd
+    assert executor.counters.replans >= 1
+    assert float(np.abs(q - q0).max()) > 0.05          # it left
+
+
+def test_a_resting_arm_dodges_a_forearm_coming_at_it(world, limits):
+    """A ball flying at the resting arm's elbow at 0.5 m/s: the directed dodge targets push the
+    arm's points nearest its path away from it, and a dodge is found that is free at every
+    step of the ball's predicted motion (time windows) — and of its true motion."""
+    from chekhov.execute.evade import Evader, EvadeSettings, _arm_points, _to_segment
+    from chekhov.execute.motion import Bounds, Motion
+    from chekhov.execute.obstacles import ObstacleTracks, obstacles_at
+    q0, _ = start_and_goal(world, 0, 0)
+    elbow = world.robot.compute_joint_placements(q0)[3, :3, 3]
+    d = np.array([-1.0, 0.0, 0.0])
+    ball = MovingObstacle("ball", Shape("sphere", (0.06,)), np.eye(3), elbow - 0.6 * d,
+                          elbow + 0.6 * d, 0.0, 0.5)
+    tracks = ObstacleTracks()
+    t0 = 0.5
+    for stamp in (t0 - 1 / 30, t0):
+        tracks.update(obstacles_at((ball,), stamp), stamp)
+    c = CONFIG.executor
+    evader = Evader(world, tracks, EvadeSettings(c.horizon_s, c.margin_m, c.check_dt_s), limits,
+                    Bounds(world.robot.lower, world.robot.upper))
+    a, b = ball.pose(t0)[:3, 3], ball.pose(t0 + c.horizon_s)[:3, 3]
+
+    def gap(q):
+        return min(float(np.linalg.norm(_to_segment(p, a, b))) for p in _arm_points(world, q))
+    directed = evader.directed(q0, t0)
+    assert len(directed) > 0
+    assert max(gap(q) for q in directed) > gap(q0) + 0.08
+    z = np.zeros_like(q0)
+    move = evader.dodge(State(q0, z, z), t0, {})
+    assert move is not None and isinstance(move, Motion)
+    ts, Q = move.positions(t0, ball.t_end, DT)
+    from chekhov.execute.evaluate import TrueWorld
+    truth = TrueWorld(world, (ball,))
+    assert any(truth.collides(q0, float(t)) for t in ts)          # staying put: contact
+    assert not any(truth.collides(q, float(t)) for q, t in zip(Q, ts, strict=True))
+
+
 def test_the_evaluation_sees_a_collision_and_a_velocity_jump(world, limits):
     """Not the executive's checks: a record driven straight through a sphere is a collision;
     a position jump without a kick is a limit violation."""

@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from chekhov.collision.path_check import exact_path_decision
+from chekhov.execute.evade import Evader, EvadeSettings
 from chekhov.execute.motion import (
     Bounds,
     Motion,
@@ -30,7 +31,6 @@ from chekhov.execute.motion import (
     brake_along,
     hold,
     join,
-    ruckig_piece,
     stop_from,
     stop_time,
     trajectory_motion,
@@ -46,14 +46,9 @@ from chekhov.world import World
 Array = NDArray[np.float64]
 
 
-DODGE_CANDIDATES = 64
-DODGE_RAD = 0.7
-"""rad, the largest joint offset of a dodge's target."""
 EVADE_LEAD_S = 0.5
 """s, how early an arm at rest, braking or dodging gets out of the way of a predicted
 conflict (a replan may find no start outside the obstacles' sweep)."""
-WINDOW_S = 0.1
-"""s, the time windows of :meth:`Executor._safe_in_time`."""
 
 
 @dataclass(frozen=True)
@@ -168,7 +163,10 @@ class Executor:
         self._seen: Obstacles = {}
         self._exact_has: Obstacles | None = None
         self._submit_wall = 0.0
-        self._rng = np.random.default_rng(0)
+        c = self.config
+        self.evader = Evader(world, self.tracks, EvadeSettings(c.horizon_s, c.margin_m,
+                                                               c.check_dt_s),
+                             self.limits, self.bounds)
 
     # --- the tick ---------------------------------------------------------------------
     def step(self, obs: Observation) -> Command:
@@ -224,7 +222,8 @@ class Executor:
         start = State(np.asarray(obs.q, dtype=float), np.asarray(obs.qd, dtype=float), last.qdd)
         t_back = min(t + self.config.rejoin_s, self.motion.t_end)
         back = join(start, t, self.motion, t_back, self.limits, self.bounds)
-        if back is not None and self._free(back, t, back.pieces[0].t_end + 0.1):
+        if back is not None and (self._free(back, t, back.pieces[0].t_end + 0.1)
+                                 or self._safe([back], t).all()):
             self.counters.rejoins += 1
             self._install(back)
             self._resolve(t + self.config.control_dt_s, t)
@@ -234,8 +233,13 @@ class Executor:
                 self._need = self._need or "retry"
             return
         self._cancel()
-        self.counters.safe_stops += 1
-        self._install(stop_from(start, t, self.limits, self.bounds))
+        move = self.evader.dodge(start, t, self._seen) if self.tracks.tracks else None
+        if move is not None:        # a stop could leave the arm in an obstacle's way
+            self.counters.dodges += 1
+        else:
+            self.counters.safe_stops += 1
+            move = stop_from(start, t, self.limits, self.bounds)
+        self._install(move)
         self._react(t + self.config.control_dt_s)
         self._need = "kick"
 
@@ -266,23 +270,23 @@ class Executor:
         assert self.motion is not None
         dt = self.config.control_dt_s
         kind = self.motion.kind_at(t)
-        if kind == "dodge" and self._safe_in_time([self.motion], t).all():
+        if kind == "dodge" and self._safe([self.motion], t).all():
             return
-        self._cancel()
-        self._need = "obstacle"
         moving = bool(np.abs(self.motion.sample(t).qd).max() > 1e-6)
         brake = brake_along(self.motion, t + dt, self.limits) if moving and kind not in (
             "brake", "dodge") else None
-        if brake is not None and self._safe_in_time([brake], t + dt).all():
-            self._install(brake)
+        if brake is not None and self._safe([brake], t + dt).all():
             self.counters.safe_stops += 1
         elif self._dodge(t):
-            pass
+            return
         elif brake is not None:
-            self._install(brake)
             self.counters.safe_stops += 1
         else:
-            return
+            return      # nothing new: a plan asked for stays asked for
+        assert brake is not None
+        self._cancel()
+        self._need = "obstacle"
+        self._install(brake)
         self._react(t + dt)
 
     # --- plans ------------------------------------------------------------------------
@@ -323,8 +327,8 @@ class Executor:
         if reply.trajectory is None:
             self._failed(reply.status)
             if reply.status == "invalid_start" and self.motion is not None and \
-                    self.motion.kind_at(t) != "dodge" and self._dodge(t):
-                self._react(t + self.config.control_dt_s)
+                    self.motion.kind_at(t) != "dodge":
+                self._dodge(t)
             return
         t_join = t + self.config.control_dt_s
         new = self._joined(reply, t_join)
@@ -347,7 +351,9 @@ class Executor:
         """The reply's trajectory joined onto the motion at clock time ``t_join`` (the next
         command, as soon as the reply is in: the plan starts from the state expected at the
         handoff, and the Ruckig join takes the arm from wherever it is onto it), the first
-        join that is free of the latest predicted obstacles with its rest."""
+        join that is free of the latest predicted obstacles with its rest — or, for an arm
+        inside their margin (planned against the obstacles as last seen), safe in time with
+        no margin."""
         assert reply.trajectory is not None and self.motion is not None
         start = self.motion.sample(t_join)
         target = trajectory_motion(reply.trajectory, 0.0)
@@ -358,58 +364,30 @@ class Executor:
                        self.bounds if inside else None)
             if new is not None and self._free(new, t_join, new.pieces[0].t_end + 0.1):
                 return new
+            if new is not None and not self.world.fast.valid(start.q[None])[0] and \
+                    self.evader.safe_in_time([new], t_join, self._seen, 0.0).all():
+                return new
         return None
 
     def _dodge(self, t: float) -> bool:
-        """Out of the obstacles' way when braking along the path is not: a Ruckig move from
-        the next command to the nearest of :data:`DODGE_CANDIDATES` random configurations
-        within :data:`DODGE_RAD`, the first that is free at every step of the predicted motion
-        (:meth:`_safe_in_time`). Whether one was installed."""
+        """Out of the obstacles' way when braking along the path is not: the
+        :class:`~chekhov.execute.evade.Evader`'s dodge from the next command, installed (the
+        plan asked for cancelled, a new one asked for) when there is one."""
         assert self.motion is not None
         dt = self.config.control_dt_s
-        now = self.motion.sample(t + dt)
-        robot = self.world.robot
-        D = self._rng.uniform(-DODGE_RAD, DODGE_RAD, (DODGE_CANDIDATES, robot.dof))
-        D *= self._rng.uniform(0.2, 1.0, (DODGE_CANDIDATES, 1))
-        C = np.clip(now.q + D, robot.lower, robot.upper)
-        C = C[np.argsort(np.linalg.norm(C - now.q, axis=1))]
-        z = np.zeros_like(now.q)
-        moves = []
-        for q_r in C:
-            piece = ruckig_piece(now, State(q_r, z, z), t + dt, self.limits, "dodge",
-                                 self.bounds)
-            if piece is not None:
-                moves.append(Motion((piece,)))
-        safe = self._safe_in_time(moves, t + dt)
-        if not safe.any():
+        move = self.evader.dodge(self.motion.sample(t + dt), t + dt, self._seen)
+        if move is None:
             return False
-        self._install(moves[int(np.argmax(safe))])
+        self._cancel()
+        self._need = "obstacle"
+        self._install(move)
         self.counters.dodges += 1
+        self._react(t + dt)
         return True
 
-    def _safe_in_time(self, motions: list[Motion], t0: float) -> NDArray[np.bool_]:
-        """Which ``motions`` (all starting at t0) are within the limits and free of the
-        obstacles' predicted motion, window by window: over each :data:`WINDOW_S` of the
-        horizon the fast checker (conservative) holds the sweep of that window only, and the
-        motions' configurations of that window are checked against it; the last window's
-        sweep also holds for the rest of each motion."""
-        c = self.config
-        n_win = max(1, math.ceil(c.horizon_s / WINDOW_S))
-        ok = np.ones(len(motions), dtype=bool)
-        fast = self.world.fast
-        try:
-            for k in range(n_win):
-                a, b = t0 + k * WINDOW_S, t0 + (k + 1) * WINDOW_S
-                fast.set_obstacles(predicted_obstacles(self.tracks, a, WINDOW_S, c.margin_m))
-                last = k == n_win - 1
-                for i, m in enumerate(motions):
-                    if ok[i]:
-                        _, Q = m.positions(a, max(b, m.t_end) if last else b, c.check_dt_s)
-                        ok[i] = bool(self.world.robot.within_limits(Q).all()
-                                     and fast.valid(Q).all())
-        finally:
-            fast.set_obstacles(self._seen)
-        return ok
+    def _safe(self, motions: list[Motion], t0: float) -> NDArray[np.bool_]:
+        """:meth:`Evader.safe_in_time <chekhov.execute.evade.Evader.safe_in_time>`."""
+        return self.evader.safe_in_time(motions, t0, self._seen)
 
     # --- checks -----------------------------------------------------------------------
     def _first_conflict(self, motion: Motion, t: float) -> float | None:

@@ -1,0 +1,171 @@
+"""Getting out of a moving obstacle's way when there is no time to wait for a plan
+(:class:`Evader`): motions judged against the obstacles' predicted motion window by window
+(:meth:`Evader.safe_in_time`), and dodges (:meth:`Evader.dodge`) — Ruckig moves to nearby
+configurations: some pushed away from the predicted obstacles through the Jacobians of the
+arm's points nearest them, the rest random — of which the nearest safe one is taken.
+
+Units: s, rad, m.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from chekhov.execute.motion import Bounds, Motion, State, ruckig_piece
+from chekhov.execute.obstacles import Obstacles, ObstacleTracks, predicted_obstacles
+from chekhov.timing import Limits
+from chekhov.world import World
+
+Array = NDArray[np.float64]
+
+DODGE_CANDIDATES = 64
+"""Random dodge targets tried besides the directed ones."""
+DODGE_RAD = 0.7
+"""rad, the largest joint offset of a dodge's target."""
+DODGE_STEPS_M = (0.12, 0.25, 0.4)
+"""m, how far a directed dodge moves the arm's point nearest an obstacle (first order)."""
+DODGE_POINTS = 3
+"""How many of the arm's points nearest the predicted obstacles directed dodges push."""
+DAMPING = 0.05
+"""The damping of the least-squares Jacobian steps (m)."""
+WINDOW_S = 0.1
+"""s, the time windows of :meth:`Evader.safe_in_time`."""
+FD_RAD = 1e-4
+"""rad, the finite-difference step of the points' Jacobians."""
+
+
+@dataclass(frozen=True)
+class EvadeSettings:
+    """What an :class:`Evader` needs of the executive's configuration: ``horizon_s`` (s) of
+    prediction, ``margin_m`` (m) of inflation, ``check_dt_s`` (s) between checked
+    configurations."""
+
+    horizon_s: float
+    margin_m: float
+    check_dt_s: float
+
+
+class Evader:
+    """Judges and makes evasive motions in ``world`` (its fast checker's dynamic obstacles are
+    set while judging and put back to ``restore()``'s obstacles after)."""
+
+    def __init__(self, world: World, tracks: ObstacleTracks, settings: EvadeSettings,
+                 limits: Limits, bounds: Bounds, seed: int = 0) -> None:
+        self.world, self.tracks, self.settings = world, tracks, settings
+        self.limits, self.bounds = limits, bounds
+        self.rng = np.random.default_rng(seed)
+
+    def safe_in_time(self, motions: list[Motion], t0: float, restore: Obstacles,
+                     margin_m: float | None = None) -> NDArray[np.bool_]:
+        """Which ``motions`` (all starting at t0, s) are within the limits and free of the
+        obstacles' predicted motion, window by window: over each :data:`WINDOW_S` of the
+        horizon the fast checker (conservative) holds the sweep of that window only
+        (inflated by ``margin_m``, m; the settings' by default), and the motions'
+        configurations of that window are checked against it; the last window's sweep also
+        holds for the rest of each motion. The fast checker gets ``restore`` back after."""
+        c = self.settings
+        margin = c.margin_m if margin_m is None else margin_m
+        n_win = max(1, math.ceil(c.horizon_s / WINDOW_S))
+        ok = np.ones(len(motions), dtype=bool)
+        fast = self.world.fast
+        try:
+            for k in range(n_win):
+                if not ok.any():
+                    break
+                a, b = t0 + k * WINDOW_S, t0 + (k + 1) * WINDOW_S
+                fast.set_obstacles(predicted_obstacles(self.tracks, a, WINDOW_S, margin))
+                last = k == n_win - 1
+                for i, m in enumerate(motions):
+                    if ok[i]:
+                        _, Q = m.positions(a, max(b, m.t_end) if last else b, c.check_dt_s)
+                        ok[i] = bool(self.world.robot.within_limits(Q).all()
+                                     and fast.valid(Q).all())
+        finally:
+            fast.set_obstacles(restore)
+        return ok
+
+    def dodge(self, now: State, t0: float, restore: Obstacles) -> Motion | None:
+        """A Ruckig move from ``now`` at clock time t0 (s) to the nearest of the dodge targets
+        (:meth:`targets`) that is safe in time (:meth:`safe_in_time`) with the margin, else
+        with none (an arm already inside the margin gets out); None when none is."""
+        z = np.zeros_like(now.q)
+        moves = []
+        for q_r in self.targets(now.q, t0):
+            piece = ruckig_piece(now, State(q_r, z, z), t0, self.limits, "dodge",
+                                 self.bounds)
+            if piece is not None:
+                moves.append(Motion((piece,)))
+        for margin in (None, 0.0):
+            safe = self.safe_in_time(moves, t0, restore, margin)
+            if safe.any():
+                return moves[int(np.argmax(safe))]
+        return None
+
+    def targets(self, q: Array, t0: float) -> Array:
+        """Dodge targets (N, K) rad within the joint limits, nearest ``q`` first: directed
+        ones (:meth:`directed`) and :data:`DODGE_CANDIDATES` random ones within
+        :data:`DODGE_RAD`."""
+        robot = self.world.robot
+        D = self.rng.uniform(-DODGE_RAD, DODGE_RAD, (DODGE_CANDIDATES, robot.dof))
+        D *= self.rng.uniform(0.2, 1.0, (DODGE_CANDIDATES, 1))
+        C = np.clip(np.vstack([q + D, self.directed(q, t0)]), robot.lower, robot.upper)
+        return C[np.argsort(np.linalg.norm(C - q, axis=1))]
+
+    def directed(self, q: Array, t0: float) -> Array:
+        """Targets (N, K) rad that move the :data:`DODGE_POINTS` points of the arm nearest the
+        obstacles' predicted paths (over the horizon from t0, s) away from them — straight
+        away, up, down, and away and up or down — by each of :data:`DODGE_STEPS_M`, through
+        damped least squares on the points' Jacobians (offsets capped at
+        :data:`DODGE_RAD`)."""
+        if not self.tracks.tracks:
+            return np.empty((0, len(q)))
+        P = _arm_points(self.world, q)
+        paths = [(self.tracks.pose(n, t0)[:3, 3],
+                  self.tracks.pose(n, t0 + self.settings.horizon_s)[:3, 3])
+                 for n in self.tracks.tracks]
+        near = np.array([min((_to_segment(p, a, b) for a, b in paths),
+                             key=lambda d: float(np.linalg.norm(d))) for p in P])
+        order = np.argsort(np.linalg.norm(near, axis=1))[:DODGE_POINTS]
+        J = _point_jacobians(self.world, q, P)
+        up = np.array([0.0, 0.0, 1.0])
+        out = []
+        for i in order:
+            away = near[i] / max(float(np.linalg.norm(near[i])), 1e-9)
+            Ji = J[i]
+            inv = Ji.T @ np.linalg.inv(Ji @ Ji.T + DAMPING ** 2 * np.eye(3))
+            for d in (away, up, -up, away + up, away - up):
+                dq = inv @ (d / max(float(np.linalg.norm(d)), 1e-9))
+                n = float(np.abs(dq).max())
+                if n < 1e-9:
+                    continue
+                for step in DODGE_STEPS_M:
+                    out.append(q + dq * min(step, DODGE_RAD / n))
+        return np.array(out) if out else np.empty((0, len(q)))
+
+
+def _arm_points(world: World, q: Array) -> Array:
+    """(M, 3) m: the joint origins, the end effector, and the midpoints between them."""
+    pts = np.vstack([world.robot.compute_joint_placements(q)[:, :3, 3],
+                     world.robot.compute_ee_pose(q)[:3, 3]])
+    return np.vstack([pts, (pts[:-1] + pts[1:]) / 2])
+
+
+def _point_jacobians(world: World, q: Array, P: Array) -> Array:
+    """(M, 3, K): d(point)/dq of :func:`_arm_points` at q (forward differences)."""
+    J = np.empty((len(P), 3, len(q)))
+    for j in range(len(q)):
+        dq = np.zeros_like(q)
+        dq[j] = FD_RAD
+        J[:, :, j] = (_arm_points(world, q + dq) - P) / FD_RAD
+    return J
+
+
+def _to_segment(p: Array, a: Array, b: Array) -> Array:
+    """(3,) m: from the point of segment a-b nearest p to p."""
+    ab = b - a
+    s = float(np.clip(np.dot(p - a, ab) / max(float(np.dot(ab, ab)), 1e-12), 0.0, 1.0))
+    return p - (a + s * ab)
