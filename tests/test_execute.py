@@ -334,3 +334,20 @@ def test_a_worker_refuses_a_planner_of_another_world(planner):
     for kind in (InlineWorker, ThreadWorker):
         with pytest.raises(ChekhovError, match="another World"):
             kind(other, planner, CONFIG.executor.timing)
+
+
+def test_a_thread_worker_closes_cleanly(world, planner):
+    """close(wait=True) returns once the planning thread has ended; no reply comes after."""
+    import threading
+    import time as _time
+
+    from chekhov.execute.worker import PlanRequest, ThreadWorker
+    worker = ThreadWorker(world, planner, CONFIG.executor.timing)
+    q0, goal = start_and_goal(world, 0, 0)
+    z = np.zeros_like(q0)
+    worker.submit(PlanRequest(0.0, 0.05, State(q0, z, z), goal, ({},), 0.2, 0))
+    worker.close(wait=True)
+    assert not any(t.name.startswith("chekhov-plan") and t.is_alive()
+                   for t in threading.enumerate())
+    _time.sleep(0.05)
+    assert worker.poll(10.0) is None

@@ -153,5 +153,10 @@ class ThreadWorker:
     def cancel(self) -> None:
         self._future = None     # a running plan finishes on its own; its reply is dropped
 
-    def close(self) -> None:
-        self._pool.shutdown(wait=False, cancel_futures=True)
+    def close(self, wait: bool = False) -> None:
+        """Stop the thread. ``wait=False``: return at once (a plan being computed finishes on
+        its own and its reply is dropped); ``wait=True``: a clean shutdown, returning once
+        the thread has ended (after the plan being computed, at most its budget). Either way
+        no plan not yet started runs, and no reply comes after."""
+        self._future = None
+        self._pool.shutdown(wait=wait, cancel_futures=True)
