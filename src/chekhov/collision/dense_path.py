@@ -6,18 +6,26 @@ gets a clearance certificate when its bounding sphere is clear of everything by 
 (from the static and fixed-part distance grids' lower bounds and the exact distances to dynamic
 obstacles): since the centre moves by at most D_g = Σ_i |δq_i| L_gi per substep (δq the
 substep's joint step, L_gi a bound on the distance from joint i to c_g that holds in every
-configuration), the group stays clear for floor(d / D_g) substeps. Self-collision pairs get
-certificates the same way, against D_a + D_b. A group whose bounding sphere is not clear tries
-its own spheres: each sphere's centre lies within r_g of c_g, so moves by at most
-S_g = Σ_i |δq_i| (L_gi + r_g) per substep, and when every sphere s is clear by d_s > 0 the
-group stays clear for floor(min_s d_s / S_g) substeps (a self pair likewise, from its sphere
-pairs' gaps, against S_a + S_b). Near obstacles — a hand at a pre-grasp, an elbow beside a
-shelf — the bounding sphere touches while the spheres are centimetres clear: measured on the
-task cases' certifications, 41% (shelf) to 60% (Panda cage) of the samples needed the full
-check with bounding spheres alone. A configuration whose groups and pairs are all
-certified is free for the fast checker; any other is checked in full by
-:func:`validity.collisions`. So the answer is the same as checking every configuration
-with the fast checker, at a fraction of the cost. The lever-arm bounds L_gi are
+configuration), the group stays clear for floor(d / D_g) substeps. A group whose bounding
+sphere is not clear tries its own spheres: each sphere's centre lies within r_g of c_g, so
+moves by at most S_g = Σ_i |δq_i| (L_gi + r_g) per substep, and when every sphere s is clear by
+d_s > 0 the group stays clear for floor(min_s d_s / S_g) substeps.
+
+Self-collision pairs get certificates the same way, but a pair's gap changes only through the
+joints between its two groups (below their lowest common joint: the joints above move both
+rigidly), so only those joints count: from the bounding spheres' gap, else the smallest gap
+between their spheres, else — spheres overlapping, as the Panda's link 5 and fingers do in a
+fifth of its configurations — the gap GJK certifies between the covered geometries beyond
+their confirmation margins (:func:`gjk.convex_gap`).
+
+Near obstacles — a hand at a pre-grasp, an elbow beside a shelf — the bounding sphere touches
+while the spheres are centimetres clear: on the task cases' certifications, 41% (shelf) to 60%
+(Panda cage) of the samples needed the full check with the bounding spheres' certificates
+alone. A configuration whose groups and pairs are all certified is free for the fast checker;
+any other is checked in full by :func:`validity.collisions`. So the answer is the same as
+checking every configuration with the fast checker (a GJK-certified gap is a true one, so at
+most a configuration whose confirmation would not have converged could differ, in the free
+direction of the truth), at a fraction of the cost. The lever-arm bounds L_gi are
 ``PackedWorld.groups.lever`` (``packed.lever_arms``).
 """
 
@@ -29,29 +37,39 @@ import numpy as np
 from numba import njit
 
 from chekhov.collision import packed
-from chekhov.collision.codes import NONE
+from chekhov.collision.codes import NO_GEOMETRY, NONE
+from chekhov.collision.gjk import convex_gap
 from chekhov.collision.kernels import grid_cell, signed_distance
-from chekhov.collision.validity import collisions, make_work
+from chekhov.collision.validity import collisions, make_work, part_centre, place_geometry
 from chekhov.robot.chain_kinematics import chain_fk_arrays
 
 
 class WalkWork(NamedTuple):
     """Work arrays of :func:`_walk`: until (G,) / puntil (P,) int64, the last substep each
     group / self pair is certified free to; step_len (G,) m, the most a group's centre moves
-    in one substep, and sphere_step (G,) m the most any of its spheres' centres does; q (K,);
-    Rc (K, 3, 3), pc (K, 3), gwc (G, 3): joint poses and group centres; swc (S, 3) sphere
-    centres, valid for the substep in swc_at (G,) int64 (per group)."""
+    in one substep, and sphere_step (G,) m the most any of its spheres' centres does;
+    pair_step / pair_sphere_step (P,) m the same for self pair k's two groups *relative to
+    each other* (only the joints between them count); q (K,); Rc (K, 3, 3), pc (K, 3),
+    gwc (G, 3): joint poses and group centres; swc (S, 3) sphere centres, valid for the
+    substep in swc_at (G,) int64 (per group); mark (K,) bool, Rw (2, 3, 3), pw (2, 3),
+    cw (2, 3) work space."""
 
     until: np.ndarray
     puntil: np.ndarray
     step_len: np.ndarray
     sphere_step: np.ndarray
+    pair_step: np.ndarray
+    pair_sphere_step: np.ndarray
     q: np.ndarray
     Rc: np.ndarray
     pc: np.ndarray
     gwc: np.ndarray
     swc: np.ndarray
     swc_at: np.ndarray
+    mark: np.ndarray
+    Rw: np.ndarray
+    pw: np.ndarray
+    cw: np.ndarray
 
 
 @njit(cache=True, inline="always")
@@ -114,6 +132,68 @@ def _pair_gap(start, sr, swc, a, b):  # pragma: no cover - compiled
     return gap
 
 
+@njit(cache=True, inline="always")
+def _relative_steps(P0, P1, n, a, b, parent, gj, gr, lever, mark, pair_step,
+                    pair_sphere_step, k):  # pragma: no cover - compiled
+    """pair_step[k] / pair_sphere_step[k] (m): the most group b's centre / any point within
+    r_b of it moves relative to group a's (and a's relative to their common ancestor) in one
+    substep of P0 → P1 (n substeps): only the joints below the groups' lowest common joint
+    count, each by |δq_i| times its lever (plus the group's radius). A joint that moves both
+    groups moves them rigidly together and leaves their gaps as they are."""
+    for i in range(mark.shape[0]):
+        mark[i] = False
+    i = gj[a]
+    while i >= 0:
+        mark[i] = True
+        i = parent[i]
+    centre = 0.0
+    sphere = 0.0
+    i = gj[b]
+    while i >= 0 and not mark[i]:
+        dq = abs(P1[i] - P0[i])
+        centre += dq * lever[b, i]
+        sphere += dq * (lever[b, i] + gr[b])
+        i = parent[i]
+    common = i
+    i = gj[a]
+    while i != common:
+        dq = abs(P1[i] - P0[i])
+        centre += dq * lever[a, i]
+        sphere += dq * (lever[a, i] + gr[a])
+        i = parent[i]
+    pair_step[k] = centre / max(n, 1) + 1e-12
+    pair_sphere_step[k] = sphere / max(n, 1) + 1e-12
+
+
+GAP_LOOK = 8
+"""Substeps of relative motion a self pair's geometry gap is asked to cover (beyond the
+confirmation margins) when GJK measures it: a farther target costs more GJK iterations."""
+
+
+@njit(cache=True, inline="always")
+def _geometry_gap(geo, gj, Rc, pc, a, b, target, Rw, pw, cw):  # pragma: no cover - compiled
+    """A certified lower bound (m) on the distance between the geometries groups a and b
+    cover (every pair of their parts, :func:`gjk.convex_gap` towards ``target``), or -inf
+    when either has none; joint poses Rc, pc of the substep."""
+    gk = geo.kind
+    if gk[a] == NO_GEOMETRY or gk[b] == NO_GEOMETRY:
+        return -np.inf
+    start, vstart, hv, hc = geo.part_start, geo.vert_start, geo.verts, geo.part_centre
+    place_geometry(Rc, pc, gj, geo.R, geo.p, a, Rw[0], pw[0])
+    place_geometry(Rc, pc, gj, geo.R, geo.p, b, Rw[1], pw[1])
+    gap = np.inf
+    for i in range(start[a], start[a + 1]):
+        part_centre(hc, i, Rw[0], pw[0], cw[0])
+        for j in range(start[b], start[b + 1]):
+            part_centre(hc, j, Rw[1], pw[1], cw[1])
+            gap = min(gap, convex_gap(gk[a], Rw[0], pw[0], geo.size[a], hv, vstart[i],
+                                      vstart[i + 1], cw[0], gk[b], Rw[1], pw[1], geo.size[b],
+                                      hv, vstart[j], vstart[j + 1], cw[1], target))
+            if gap <= 0.0:
+                return gap
+    return gap
+
+
 @njit(cache=True)
 def _walk(P0, P1, n, m_first, m_last, check_ends, world, work, ww
           ):  # pragma: no cover - compiled
@@ -132,7 +212,9 @@ def _walk(P0, P1, n, m_first, m_last, check_ends, world, work, ww
     origin, h, ih, delta, V, gfix = (grids.origin, grids.h, grids.inv_h, grids.delta,
                                      grids.fine, grids.fixed)
     dk, dR, dp, ds = dyn.kind, dyn.R, dyn.p, dyn.size
-    until, puntil, step_len, sphere_step, q, Rc, pc, gwc, swc, swc_at = ww
+    (until, puntil, step_len, sphere_step, pair_step, pair_sphere_step, q, Rc, pc, gwc, swc,
+     swc_at, mark, Rw, pw, cw) = ww
+    geo = world.geometry
     q_row = q.reshape((1, K))   # q, as the one row validity.collisions checks
     hit = np.empty(1, dtype=np.bool_)
     G = gr.shape[0]
@@ -151,6 +233,8 @@ def _walk(P0, P1, n, m_first, m_last, check_ends, world, work, ww
         sphere_step[g] = r_ / max(n, 1) + 1e-12
     for k in range(self_pairs.shape[0]):
         puntil[k] = -1
+        _relative_steps(P0, P1, n, self_pairs[k, 0], self_pairs[k, 1], parent, gj, gr, lever,
+                        mark, pair_step, pair_sphere_step, k)
     for m in range(m_first, m_last + 1):
         for i in range(K):
             q[i] = P0[i] + (m / n) * (P1[i] - P0[i]) if n > 0 else P0[i]
@@ -190,13 +274,17 @@ def _walk(P0, P1, n, m_first, m_last, check_ends, world, work, ww
             d = np.sqrt((gwc[a, 0] - gwc[b, 0]) ** 2 + (gwc[a, 1] - gwc[b, 1]) ** 2
                         + (gwc[a, 2] - gwc[b, 2]) ** 2) - gr[a] - gr[b]
             if d > 0.0:
-                puntil[k] = m + int(d / (step_len[a] + step_len[b]))
+                puntil[k] = m + int(d / pair_step[k])
                 continue
             _sphere_centres(a, m, start, sc, sj, Rc, pc, swc, swc_at)
             _sphere_centres(b, m, start, sc, sj, Rc, pc, swc, swc_at)
             d = _pair_gap(start, sr, swc, a, b)
+            if d <= 0.0:   # overlapping spheres: the covered geometries' gap, past the pads
+                pads = geo.pad[a] + geo.pad[b]
+                d = _geometry_gap(geo, gj, Rc, pc, a, b, pads + GAP_LOOK * pair_sphere_step[k],
+                                  Rw, pw, cw) - pads
             if d > 0.0:
-                puntil[k] = m + int(d / (sphere_step[a] + sphere_step[b]))
+                puntil[k] = m + int(d / pair_sphere_step[k])
             else:
                 need_full = True
         if not need_full:
@@ -213,10 +301,12 @@ def make_walk_work(K, world):  # pragma: no cover - compiled
     """A :class:`WalkWork` for ``world`` and K joints."""
     G = world.groups.radius.shape[0]
     S = world.spheres.radius.shape[0]
-    return WalkWork(np.empty(G, dtype=np.int64),
-                    np.empty(world.groups.self_pairs.shape[0], dtype=np.int64), np.empty(G),
-                    np.empty(G), np.empty(K), np.empty((K, 3, 3)), np.empty((K, 3)),
-                    np.empty((G, 3)), np.empty((S, 3)), np.empty(G, dtype=np.int64))
+    P = world.groups.self_pairs.shape[0]
+    return WalkWork(np.empty(G, dtype=np.int64), np.empty(P, dtype=np.int64), np.empty(G),
+                    np.empty(G), np.empty(P), np.empty(P), np.empty(K), np.empty((K, 3, 3)),
+                    np.empty((K, 3)), np.empty((G, 3)), np.empty((S, 3)),
+                    np.empty(G, dtype=np.int64), np.empty(K, dtype=np.bool_),
+                    np.empty((2, 3, 3)), np.empty((2, 3)), np.empty((2, 3)))
 
 
 @njit(cache=True, inline="always")

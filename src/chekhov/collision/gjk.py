@@ -192,6 +192,20 @@ def convex_collide(ka, Ra, pa, sa, Va, a0, a1, ca, kb, Rb, pb, sb, Vb, b0, b1, c
 
     Each shape is (kind, R, p, size, V, v0, v1) as in :func:`support_value`, and a point of it
     (world, m) to start from: ca, cb (e.g. its centre)."""
+    return convex_gap(ka, Ra, pa, sa, Va, a0, a1, ca, kb, Rb, pb, sb, Vb, b0, b1, cb,
+                      pad) <= pad + 1e-9
+
+
+@njit(cache=True, inline="always")
+def convex_gap(ka, Ra, pa, sa, Va, a0, a1, ca, kb, Rb, pb, sb, Vb, b0, b1, cb, target
+               ):  # pragma: no cover - compiled
+    """A certified lower bound (m) on the distance between convex shapes A and B (shapes as
+    in :func:`convex_collide`): the largest min over A − B of x·u that GJK's directions u
+    gave. GJK stops once it exceeds ``target`` + 1e-9 (returned), when a point of A − B lies
+    within ``target`` of the origin (the bound along that point's direction is taken too, so
+    a converged GJK returns about the distance) or when it makes no progress; ≤ ``target`` +
+    1e-9 whenever the shapes are not proved more than ``target`` apart (-inf: no direction
+    tried)."""
     S = np.empty((4, 3))
     v = np.empty(3)
     u = np.empty(3)
@@ -200,25 +214,30 @@ def convex_collide(ka, Ra, pa, sa, Va, a0, a1, ca, kb, Rb, pb, sb, Vb, b0, b1, c
     for a in range(3):
         v[a] = ca[a] - cb[a]
     n = 0
+    best = -np.inf
     for _ in range(MAX_ITER):
         nv = np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
-        if nv <= pad:
-            return True  # a point of A − B within pad of the origin
+        if nv <= 0.0:
+            return best
         for a in range(3):
             u[a] = v[a] / nv
+        if nv <= target:   # a point of A − B within target of the origin: no proof above it
+            return max(best, -support_value(ka, Ra, pa, sa, Va, a0, a1, -u)
+                       - support_value(kb, Rb, pb, sb, Vb, b0, b1, u))
         # certificate along u: min over A − B of x·u
         sep = (-support_value(ka, Ra, pa, sa, Va, a0, a1, -u)
                - support_value(kb, Rb, pb, sb, Vb, b0, b1, u))
-        if sep > pad + 1e-9:
-            return False
+        if sep > target + 1e-9:
+            return sep
+        best = max(best, sep)
         support_point(ka, Ra, pa, sa, Va, a0, a1, u, -1.0, xa)
         support_point(kb, Rb, pb, sb, Vb, b0, b1, u, 1.0, xb)
         w0, w1, w2 = xa[0] - xb[0], xa[1] - xb[1], xa[2] - xb[2]
-        # no progress: GJK has converged on a distance ≤ pad (the certificate failed)
+        # no progress: GJK has converged on a distance ≤ target (the certificate failed)
         if nv * nv - (v[0] * w0 + v[1] * w1 + v[2] * w2) <= 1e-12 * nv * nv:
-            return True
+            return best
         S[n, 0], S[n, 1], S[n, 2] = w0, w1, w2
         n = _closest_on_simplex(S, n + 1, v)
         if n == 4:
-            return True  # origin inside the simplex
-    return True
+            return best  # origin inside the simplex
+    return best

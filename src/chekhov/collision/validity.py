@@ -63,7 +63,7 @@ class Work(NamedTuple):
 
 
 @njit(cache=True, inline="always")
-def _place(Rb, pb, gj, eR, ep, g, Rw, pw):  # pragma: no cover - compiled
+def place_geometry(Rb, pb, gj, eR, ep, g, Rw, pw):  # pragma: no cover - compiled
     """World pose of group g's covered geometry (placement eR[g], ep[g] on joint gj[g])."""
     j = gj[g]
     for a in range(3):
@@ -75,7 +75,7 @@ def _place(Rb, pb, gj, eR, ep, g, Rw, pw):  # pragma: no cover - compiled
 
 
 @njit(cache=True, inline="always")
-def _part_centre(hc, k, Rw, pw, out):  # pragma: no cover - compiled
+def part_centre(hc, k, Rw, pw, out):  # pragma: no cover - compiled
     """World position of part k's centre hc[k], its geometry at (Rw, pw)."""
     for a in range(3):
         out[a] = Rw[a, 0] * hc[k, 0] + Rw[a, 1] * hc[k, 1] + Rw[a, 2] * hc[k, 2] + pw[a]
@@ -89,7 +89,7 @@ def _confirm(gk, es, pstart, vstart, hv, hc, g, Rw, pw, kb, Rb, pb, sb, Vb, b0, 
     pose Rw, pw) is proved more than ``pad`` (m) from shape B (as in
     :func:`gjk.convex_collide`, a point cb inside it); c (3,) is work space."""
     for k in range(pstart[g], pstart[g + 1]):
-        _part_centre(hc, k, Rw, pw, c)
+        part_centre(hc, k, Rw, pw, c)
         if convex_collide(gk[g], Rw, pw, es[g], hv, vstart[k], vstart[k + 1], c,
                           kb, Rb, pb, sb, Vb, b0, b1, cb, pad):
             return True
@@ -289,11 +289,11 @@ def collisions(Q, world, work, out, stop):  # pragma: no cover - compiled
         # the uncertain hits, on the exact geometry
         for i in range(npend):
             g, src, o = pend[i, 0], pend[i, 1], pend[i, 2]
-            _place(Rb, pb, gj, eR, ep, g, Rw, pw)
+            place_geometry(Rb, pb, gj, eR, ep, g, Rw, pw)
             if src == SELF:
-                _place(Rb, pb, gj, eR, ep, o, Rw2, pw2)
+                place_geometry(Rb, pb, gj, eR, ep, o, Rw2, pw2)
                 for k in range(pstart[o], pstart[o + 1]):
-                    _part_centre(hcen, k, Rw2, pw2, c2)
+                    part_centre(hcen, k, Rw2, pw2, c2)
                     if _confirm(gk, es, pstart, vstart, hv, hcen, g, Rw, pw, gk[o], Rw2, pw2, es[o],
                                 hv, vstart[k], vstart[k + 1], c2, pad[g] + pad[o], c):
                         return True
