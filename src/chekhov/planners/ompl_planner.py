@@ -24,8 +24,9 @@ How each is configured (the same for all four, apart from the objective):
 ``time_limit_s`` bounds the whole ``plan`` call: IK first, then the planner gets the rest but
 a reserve (10% of it, at most 50 ms) for the certification of its path (RRT* and PRM* stop
 that much before the limit): an RRT path's long segments are split at 0.16 rad before the 100
-substeps, and certifying one took 9-23 ms (tabletop_pole, panda_cage; deadline.py's
-certify_p99_ms).
+substeps, and when the reserve was set certifying one took 9-23 ms (tabletop_pole,
+panda_cage; deadline.py's certify_p99_ms; the walk's per-sphere certificates have cut that
+since).
 Approximate solutions count as failures ("timeout").
 
 PRM* and several goals: OMPL's PRM checks for solutions in a second C++ thread which, with
