@@ -280,6 +280,32 @@ def test_a_resting_arm_dodges_a_forearm_coming_at_it(world, limits):
     assert not any(truth.collides(q, float(t)) for q, t in zip(Q, ts, strict=True))
 
 
+def test_an_obstacle_on_the_goal_is_answered_at_once_by_holding_short_of_it(world, planner,
+                                                                           limits):
+    """A ball appears on the goal while the arm moves there and stays 2 s: no plan can reach
+    the goal meanwhile (no free IK), so the executive holds short of the ball — the motion it
+    commands changes on the tick after the frame, not when the conflict is near — waits
+    there, and reaches the goal once the ball is gone. Judged by the exact checker against
+    the ball's true pose."""
+    plain = run_one(world, planner, _script(world, 0), 20.0, CONFIG)
+    first = _script(world, 0)
+    p = first.goal.T_world_ee[:3, 3]
+    t_in = 0.3 * plain.t_reached
+    ball = MovingObstacle("ball", Shape("sphere", (0.06,)), np.eye(3), p,
+                          p + np.array([1e-9, 0.0, 0.0]), t_in, 1e-9 / 2.0)
+    script = _script(world, 0, obstacles=(ball,))
+    rec = run_one(world, planner, script, t_in + 2.0 + plain.t_reached + 4.0, CONFIG)
+    check = evaluate_episode(world, rec, limits, 0.15)
+    assert not check.collision and check.limit_violations == 0
+    seen = [r for r in rec.reactions if r.kind == "obstacle"]
+    assert seen and seen[0].t_reacted is not None
+    assert seen[0].t_reacted - seen[0].t_observed <= DT + 1e-9
+    assert rec.counters.holds >= 1
+    assert rec.counters.failed_plans >= 1              # the goal was out of reach a while
+    assert rec.reached and _meets(world, rec.q[-1], first.goal)
+    assert rec.t_reached > ball.t_end
+
+
 def test_the_evaluation_sees_a_collision_and_a_velocity_jump(world, limits):
     """Not the executive's checks: a record driven straight through a sphere is a collision;
     a position jump without a kick is a limit violation."""

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from chekhov.execute.motion import Bounds, Motion, State, ruckig_piece
+from chekhov.execute.motion import Bounds, Motion, State, brake_along, ruckig_piece, stop_time
 from chekhov.execute.obstacles import Obstacles, ObstacleTracks, predicted_obstacles
 from chekhov.timing import Limits
 from chekhov.world import World
@@ -36,6 +36,10 @@ WINDOW_S = 0.1
 """s, the time windows of :meth:`Evader.safe_in_time`."""
 FD_RAD = 1e-4
 """rad, the finite-difference step of the points' Jacobians."""
+HOLD_STEP_S = 0.1
+"""s, how much earlier each next brake start :meth:`Evader.hold_short` tries is."""
+HOLD_TRIES = 5
+"""How many brake starts :meth:`Evader.hold_short` tries."""
 
 
 @dataclass(frozen=True)
@@ -103,6 +107,24 @@ class Evader:
             safe = self.safe_in_time(moves, t0, restore, margin)
             if safe.any():
                 return moves[int(np.argmax(safe))]
+        return None
+
+    def hold_short(self, motion: Motion, t0: float, t_hit: float,
+                   restore: Obstacles) -> Motion | None:
+        """A brake along ``motion`` (:func:`~chekhov.execute.motion.brake_along`) that starts
+        as late before the conflict at ``t_hit`` (s) as it can and leaves the motion safe in
+        time from t0 (s) (:meth:`safe_in_time`, the motion up to the brake included): starts
+        tried from about one stopping time before t_hit back to t0, :data:`HOLD_STEP_S`
+        apart, at most :data:`HOLD_TRIES`; None when none is safe."""
+        t_b = t_hit - HOLD_STEP_S - stop_time(motion.sample(t_hit), self.limits)
+        for _ in range(HOLD_TRIES):
+            t_b = max(t_b, t0)
+            brake = brake_along(motion, t_b, self.limits)
+            if self.safe_in_time([motion.then(brake)], t0, restore).all():
+                return brake
+            if t_b <= t0:
+                break
+            t_b -= HOLD_STEP_S
         return None
 
     def targets(self, q: Array, t0: float) -> Array:

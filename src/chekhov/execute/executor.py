@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -136,6 +136,7 @@ class Counters:
     rejoins: int = 0
     safe_stops: int = 0
     dodges: int = 0
+    holds: int = 0
     planning_wall_s: list[float] = field(default_factory=list)
     failures: list[str] = field(default_factory=list)
     step_wall_s: list[float] = field(default_factory=list)
@@ -163,6 +164,7 @@ class Executor:
         self._seen: Obstacles = {}
         self._exact_has: Obstacles | None = None
         self._submit_wall = 0.0
+        self._held = -1
         c = self.config
         self.evader = Evader(world, self.tracks, EvadeSettings(c.horizon_s, c.margin_m,
                                                                c.check_dt_s),
@@ -262,6 +264,31 @@ class Executor:
             lead = max(lead, EVADE_LEAD_S)       # a standing arm needs time to get away
         if t_hit - t <= lead + 2 * c.control_dt_s:
             self._evade(t)
+        else:
+            self._hold_short(t, t_hit)
+
+    def _hold_short(self, t: float, t_hit: float) -> None:
+        """A conflict not near yet: the motion kept until the latest moment from which
+        braking along it is safe of the predicted motion (:meth:`Evader.hold_short`), so the
+        arm holds short of the conflict while the plan asked for comes, and stays short of it
+        should none come. A plan asked for from a state before the brake stays good."""
+        assert self.motion is not None
+        if self._held == self._token or self.motion.kind_at(t) in ("rest", "brake", "dodge"):
+            return
+        t1 = t + self.config.control_dt_s
+        held = self.evader.hold_short(self.motion, t1, t_hit, self._seen)
+        if held is None:
+            return
+        pending = self._pending
+        self._install(held)
+        self._held = self._token
+        self.counters.holds += 1
+        if pending is not None and held.t_start >= pending.t_handoff:
+            self._pending = replace(pending, token=self._token)
+        elif pending is not None:
+            self._cancel()
+            self._need = "obstacle"
+        self._react(t1, ("obstacle",))
 
     def _evade(self, t: float) -> None:
         """The conflict is too near to wait for a plan: keep a dodge that still holds, else
@@ -441,10 +468,10 @@ class Executor:
             if r.t_resolved is None and r.t_observed <= observed_by:
                 r.t_resolved = t_resolved
 
-    def _react(self, t: float) -> None:
-        """The open reactions got a first answer starting at t (s)."""
+    def _react(self, t: float, kinds: tuple[str, ...] = ("obstacle", "goal", "kick")) -> None:
+        """The open reactions (of ``kinds``) got a first answer starting at t (s)."""
         for r in self.reactions:
-            if r.t_reacted is None and r.t_observed <= t:
+            if r.t_reacted is None and r.t_observed <= t and r.kind in kinds:
                 r.t_reacted = t
 
     def _cancel(self) -> None:
