@@ -306,6 +306,42 @@ def test_an_obstacle_on_the_goal_is_answered_at_once_by_holding_short_of_it(worl
     assert rec.t_reached > ball.t_end
 
 
+def test_a_dodge_gone_unsafe_with_no_other_stops_when_stopping_is_safe(world, planner,
+                                                                     limits):
+    """A dodge heading into a still ball, no other dodge to be had: the executive stops (the
+    stop safe of the ball without margin) instead of going on into it."""
+    from chekhov.execute.executor import Executor
+    from chekhov.execute.motion import Motion
+    from chekhov.execute.obstacles import obstacles_at, predicted_obstacles
+    from chekhov.execute.worker import InlineWorker
+    q0, goal = start_and_goal(world, 0, 0)
+    q1 = q0.copy()
+    q1[0] = np.clip(q1[0] + 0.6, world.robot.lower[0], world.robot.upper[0])
+    p = world.robot.compute_ee_pose(q1)[:3, 3]
+    ball = MovingObstacle("ball", Shape("sphere", (0.08,)), np.eye(3), p,
+                          p + np.array([1e-9, 0.0, 0.0]), 0.0, 1e-12)
+    c = CONFIG.executor
+    ex = Executor(world, InlineWorker(world, planner, c.timing), goal, c)
+    z = np.zeros_like(q0)
+    piece = ruckig_piece(State(q0, z, z), State(q1, z, z), 0.0, limits, "dodge",
+                         Bounds(world.robot.lower, world.robot.upper))
+    assert piece is not None
+    ex.motion = Motion((piece,))
+    t = 0.1
+    for stamp in (t - 1 / 30, t - 0.04):
+        ex.tracks.update(obstacles_at((ball,), stamp), stamp)
+    ex._seen = predicted_obstacles(ex.tracks, t, c.horizon_s, c.margin_m)
+    ex.evader.dodge = lambda *args, **kw: None      # no other dodge to be had
+    assert not ex._safe([ex.motion], t).all()
+    ex._evade(t)
+    assert ex.motion.kind_at(t + 2 * DT) == "brake"
+    ts, Q = ex.motion.positions(t, ex.motion.t_end, DT)
+    from chekhov.execute.evaluate import TrueWorld
+    truth = TrueWorld(world, (ball,))
+    assert not any(truth.collides(q, float(s)) for q, s in zip(Q, ts, strict=True))
+    assert truth.collides(q1, 1.0)          # where the dodge ends: contact
+
+
 def test_the_evaluation_sees_a_collision_and_a_velocity_jump(world, limits):
     """Not the executive's checks: a record driven straight through a sphere is a collision;
     a position jump without a kick is a limit violation."""

@@ -293,7 +293,7 @@ class Executor:
     def _evade(self, t: float) -> None:
         """The conflict is too near to wait for a plan: keep a dodge that still holds, else
         brake along the path if that is free of the predicted motion, else dodge, else brake
-        anyway."""
+        anyway (a dodge gone unsafe: stop, if that is safer)."""
         assert self.motion is not None
         dt = self.config.control_dt_s
         kind = self.motion.kind_at(t)
@@ -306,15 +306,27 @@ class Executor:
             self.counters.safe_stops += 1
         elif self._dodge(t):
             return
-        elif brake is not None:
-            self.counters.safe_stops += 1
         else:
-            return      # nothing new: a plan asked for stays asked for
-        assert brake is not None
+            if brake is None and moving and kind == "dodge":
+                brake = self._stop_if_safer(t)
+            if brake is None:
+                return      # nothing new: a plan asked for stays asked for
+            self.counters.safe_stops += 1
         self._cancel()
         self._need = "obstacle"
         self._install(brake)
         self._react(t + dt)
+
+    def _stop_if_safer(self, t: float) -> Motion | None:
+        """A dodge no longer safe and none other found: a stop from the next command (each
+        joint braking) when the dodge is not safe in time even with no margin and the stop
+        is; else None (the dodge goes on)."""
+        assert self.motion is not None
+        dt, ev = self.config.control_dt_s, self.evader
+        if ev.safe_in_time([self.motion], t, self._seen, 0.0).all():
+            return None
+        stop = stop_from(self.motion.sample(t + dt), t + dt, self.limits, self.bounds)
+        return stop if ev.safe_in_time([stop], t + dt, self._seen, 0.0).all() else None
 
     # --- plans ------------------------------------------------------------------------
     def _handoff_time(self, t: float) -> float:
