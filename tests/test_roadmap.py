@@ -173,6 +173,24 @@ def test_loading_for_another_scene_or_newer_version_raises(tmp_path, world, road
         load_roadmap(tmp_path / "junk.npz")
 
 
+def test_edges_pass_the_certification_of_an_answer(world, roadmap):
+    """Every edge passes the check an answer's segment faces (built with ``certify_edges``):
+    here re-checked by coal alone on 40 edges, configuration by configuration, 0.0008 rad
+    apart (half the certification's spacing). A file from before the field reads False, so
+    its roadmap is rebuilt."""
+    from chekhov.collision.exact import ExactChecker
+    from chekhov.paths import resample_path
+    assert SMALL.certify_edges and "edges_failing_certification" in roadmap.meta.notes
+    exact = ExactChecker(world.robot, world.scene)
+    rng = np.random.default_rng(5)
+    for e in rng.choice(len(roadmap.edges), 40, replace=False):
+        a, b = roadmap.nodes[roadmap.edges[e]]
+        D = resample_path(np.stack([a, b]), 0.0008)
+        assert exact.valid(D).all(), f"edge {e}"
+    old = {k: v for k, v in SMALL.to_dict().items() if k != "certify_edges"}
+    assert RoadmapConfig.from_dict(old).certify_edges is False
+
+
 def test_load_or_build_reuses_a_matching_file(tmp_path, world):
     cfg = RoadmapConfig(n_nodes=40, semantic=False, n_wrist_nodes=0, seed=1)
     a = load_or_build_roadmap(world, cfg, tmp_path / "x.npz")

@@ -61,6 +61,7 @@ from chekhov.collision import dense_path
 from chekhov.collision.codes import NONE
 from chekhov.collision.exact import ExactChecker, densify
 from chekhov.collision.fast import FastChecker
+from chekhov.paths import resample_path
 
 Array = NDArray[np.float64]
 
@@ -117,6 +118,26 @@ class PathDecision(NamedTuple):
 def path_digest(path: Array) -> bytes:
     P = np.ascontiguousarray(path, dtype=np.float64)
     return hashlib.sha1(P.tobytes() + str(P.shape).encode()).digest()
+
+
+CERTIFY_SUBSTEPS = 100
+"""Interpolated configurations per segment of a certified path (the paper's 100)."""
+
+CERTIFY_MAX_SEGMENT_RAD = 0.16
+"""rad: a certified path's longer segments are split evenly first, so that its substeps are
+never more than 0.0016 rad apart (TrajOpt's waypoint spacing, the paper's)."""
+
+
+def motion_certified(fast: FastChecker, exact: ExactChecker, q_a: Array, q_b: Array,
+                     deadline: float = math.inf) -> bool:
+    """Whether the straight motion q_a → q_b (K,) rad passes the check a certified path holding
+    it as a segment passes (split at :data:`CERTIFY_MAX_SEGMENT_RAD`,
+    :data:`CERTIFY_SUBSTEPS` substeps each, :func:`exact_path_decision`); False also when
+    ``deadline`` (a ``time.perf_counter()`` value, s) passes first."""
+    D = resample_path(np.stack([q_a, q_b]), CERTIFY_MAX_SEGMENT_RAD)
+    if len(D) < 2:
+        return True
+    return exact_path_decision(fast, exact, D, CERTIFY_SUBSTEPS, deadline).valid is True
 
 
 def exact_path_decision(fast: FastChecker, exact: ExactChecker, path: Array,

@@ -32,7 +32,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from chekhov.collision.path_check import PathCertificate, exact_path_decision
+from chekhov.collision.path_check import (
+    CERTIFY_MAX_SEGMENT_RAD,
+    CERTIFY_SUBSTEPS,
+    PathCertificate,
+    exact_path_decision,
+)
 from chekhov.paths import resample_path
 from chekhov.planners.result import PlanResult
 from chekhov.planners.status import PlanStatus
@@ -44,10 +49,10 @@ if TYPE_CHECKING:
 
 Array = NDArray[np.float64]
 
-SUBSTEPS = 100
+SUBSTEPS = CERTIFY_SUBSTEPS
 """Interpolated configurations per segment in the collision check (the paper's 100)."""
 
-MAX_SEGMENT_RAD = 0.16
+MAX_SEGMENT_RAD = CERTIFY_MAX_SEGMENT_RAD
 """rad: a longer segment is split evenly before the collision check, so its substeps are never
 more than 0.0016 rad apart (TrajOpt's waypoint spacing, the paper's). Measured: a shortcut
 Panda path with a 3.35 rad segment passed at 100 substeps per segment (0.034 rad apart) and
