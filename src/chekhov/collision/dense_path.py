@@ -72,7 +72,7 @@ class WalkWork(NamedTuple):
     cw: np.ndarray
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _grid_lower_bound(origin, inv_h, h, delta, values, m, c):  # pragma: no cover - compiled
     """A lower bound on the distance (m) from point c to the primitives of grid m of the stack
     ``values``; -inf outside the grid. See :func:`kernels.grid_classify` for the bound."""
@@ -80,7 +80,7 @@ def _grid_lower_bound(origin, inv_h, h, delta, values, m, c):  # pragma: no cove
     return -np.inf if q < 0 else q * delta - e
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _group_centres(q, parent, R0, p0, axis, gc, gj, Rc, pc, gwc):  # pragma: no cover - compiled
     """World centre gwc[g] of each group's bounding sphere (centre gc[g] on joint gj[g]) at q
     (runs the chain FK)."""
@@ -92,7 +92,7 @@ def _group_centres(q, parent, R0, p0, axis, gc, gj, Rc, pc, gwc):  # pragma: no 
                          + Rc[j, a, 2] * gc[g, 2] + pc[j, a])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _point_clearance(origin, ih, h, delta, V, fix, dk, dR, dp, ds, c):  # pragma: no cover
     """A lower bound (m) on the distance from point c to the static obstacles, the fixed
     robot part grid ``fix`` (-1: none) and the dynamic obstacles (exact)."""
@@ -104,7 +104,7 @@ def _point_clearance(origin, ih, h, delta, V, fix, dk, dR, dp, ds, c):  # pragma
     return d
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _sphere_centres(g, m, start, sc, sj, Rc, pc, swc, swc_at):  # pragma: no cover - compiled
     """World centres swc of group g's spheres at substep m (once per substep and group; the
     joint poses Rc, pc must be those of substep m)."""
@@ -118,7 +118,7 @@ def _sphere_centres(g, m, start, sc, sj, Rc, pc, swc, swc_at):  # pragma: no cov
                          + Rc[j, a, 2] * sc[s, 2] + pc[j, a])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _pair_gap(start, sr, swc, a, b):  # pragma: no cover - compiled
     """The smallest gap (m) between a sphere of group a and one of group b (≤ 0: overlap)."""
     gap = np.inf
@@ -132,7 +132,7 @@ def _pair_gap(start, sr, swc, a, b):  # pragma: no cover - compiled
     return gap
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _relative_steps(P0, P1, n, a, b, parent, gj, gr, lever, mark, pair_step,
                     pair_sphere_step, k):  # pragma: no cover - compiled
     """pair_step[k] / pair_sphere_step[k] (m): the most group b's centre / any point within
@@ -170,7 +170,7 @@ GAP_LOOK = 8
 confirmation margins) when GJK measures it: a farther target costs more GJK iterations."""
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _geometry_gap(geo, gj, Rc, pc, a, b, target, Rw, pw, cw):  # pragma: no cover - compiled
     """A certified lower bound (m) on the distance between the geometries groups a and b
     cover (every pair of their parts, :func:`gjk.convex_gap` towards ``target``), or -inf
@@ -194,7 +194,7 @@ def _geometry_gap(geo, gj, Rc, pc, a, b, target, Rw, pw, cw):  # pragma: no cove
     return gap
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _walk(P0, P1, n, m_first, m_last, check_ends, world, work, ww
           ):  # pragma: no cover - compiled
     """Configurations P0 + (m / n)(P1 - P0) for m = m_first … m_last, in order: the first m
@@ -296,7 +296,7 @@ def _walk(P0, P1, n, m_first, m_last, check_ends, world, work, ww
     return NONE
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def make_walk_work(K, world):  # pragma: no cover - compiled
     """A :class:`WalkWork` for ``world`` and K joints."""
     G = world.groups.radius.shape[0]
@@ -309,7 +309,7 @@ def make_walk_work(K, world):  # pragma: no cover - compiled
                     np.empty((2, 3, 3)), np.empty((2, 3)), np.empty((2, 3)))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def with_margin(world, pad, grow):  # pragma: no cover - compiled
     """``world`` with group g's confirmation margin (``GroupGeometry.pad``) at least pad[g]
     and its spheres' and bounding sphere's radii grow[g] larger (m, (G,) each): a
@@ -330,7 +330,7 @@ def with_margin(world, pad, grow):  # pragma: no cover - compiled
                               world.static, world.dynamic, world.obstacles)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def first_dense_collision(P, substeps, start, pad, grow, world
                           ):  # pragma: no cover - compiled
     """Index (>= ``start``) of the first configuration of the densified path that the fast
@@ -356,7 +356,7 @@ def first_dense_collision(P, substeps, start, pad, grow, world
     return (T - 1) * n if m >= 0 else NONE
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def motions_valid_dense(Q0, Q1, resolution, world):  # pragma: no cover - compiled
     """Whether each straight motion Q0[i] → Q1[i] is free at the interior steps k / n,
     n = ceil(length / resolution): the same configurations and answer as

@@ -57,7 +57,7 @@ class Candidates(NamedTuple):
     normal: np.ndarray
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _world_axes(Rb, axis, out):  # pragma: no cover - compiled
     for k in range(axis.shape[0]):
         for a in range(3):
@@ -65,7 +65,7 @@ def _world_axes(Rb, axis, out):  # pragma: no cover - compiled
                          + Rb[k, a, 2] * axis[k, 2])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _add_point_gradient(n, c, joint, parent, aw, pb, scale, g):  # pragma: no cover - compiled
     """g += scale · nᵀ J_c: for each ancestor joint i of ``joint``, n · (a_i × (c - p_i))."""
     i = joint
@@ -79,7 +79,7 @@ def _add_point_gradient(n, c, joint, parent, aw, pb, scale, g):  # pragma: no co
         i = parent[i]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _centres(q, parent, R0, p0, axis, sc, sj, gc, gj, Rb, pb, cw, gw
              ):  # pragma: no cover - compiled
     """Joint poses, sphere centres cw (S, 3) and group centres gw (G, 3), world, at q (the
@@ -97,7 +97,7 @@ def _centres(q, parent, R0, p0, axis, sc, sj, gc, gj, Rb, pb, cw, gw
                         + pb[j, a])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _candidates(cap):  # pragma: no cover - compiled
     """Empty :class:`Candidates` for ``cap`` terms."""
     return Candidates(np.empty(cap), np.empty(cap, dtype=np.int64),
@@ -105,7 +105,7 @@ def _candidates(cap):  # pragma: no cover - compiled
                       np.empty(cap), np.empty((cap, 3)))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _select(cd, n, C, order):  # pragma: no cover - compiled
     """Indices of the min(C, n) smallest cd[:n] into order; returns how many."""
     m = min(C, n)
@@ -123,7 +123,7 @@ def _select(cd, n, C, order):  # pragma: no cover - compiled
     return m
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _swept_min(kind, R, p, size, c0, c1, iters):  # pragma: no cover - compiled
     """(min over α ∈ [0, 1] of sd(c0 + α (c1 - c0)), α*): golden-section search (sd is convex
     along a line for a convex obstacle), ends included."""
@@ -155,7 +155,7 @@ def _swept_min(kind, R, p, size, c0, c1, iters):  # pragma: no cover - compiled
     return best, best_a
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _closest_in_group(kind, R, p, size, g, gstart, sr, cw0, cw1, swept, margin, iters
                       ):  # pragma: no cover - compiled
     """Closest sphere of group g to one obstacle, statically (cw0) or swept (cw0 → cw1):
@@ -180,7 +180,7 @@ def _closest_in_group(kind, R, p, size, g, gstart, sr, cw0, cw1, swept, margin, 
     return best, bs, balpha
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _push(kind, R, p, size, o, src, g, gstart, sr, cw0, cw1, swept, margin, iters, y, nrm, cd,
           cs, co, ck, ca, cn, n):  # pragma: no cover - compiled
     """Push the closest sphere of group g to primitive o (kind, R, p, size: that primitive's;
@@ -198,7 +198,7 @@ def _push(kind, R, p, size, o, src, g, gstart, sr, cw0, cw1, swept, margin, iter
     return n
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _obstacle_candidates(margin, world, cw0, cw1, gw0, gw1, swept, iters, cand
                          ):  # pragma: no cover - compiled
     """Push the closest (group, obstacle / fixed part) pairs within margin into ``cand``;
@@ -252,7 +252,7 @@ def _obstacle_candidates(margin, world, cw0, cw1, gw0, gw1, swept, iters, cand
     return n
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _self_candidates(margin, world, cw, gw, n, cand):  # pragma: no cover - compiled
     """Push the closest sphere pair of each self pair of groups within margin into ``cand``
     (from index n); returns the new count."""
@@ -284,7 +284,7 @@ def _self_candidates(margin, world, cw, gw, n, cand):  # pragma: no cover - comp
     return n
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def waypoint_terms(Q, margin, C, with_obstacles, dist, grad, world
                    ):  # pragma: no cover - compiled
     """Discrete terms at each waypoint Q[t]: the C closest (group, obstacle / fixed part /
@@ -327,7 +327,7 @@ def waypoint_terms(Q, margin, C, with_obstacles, dist, grad, world
                 _add_point_gradient(cn[i], cw[u], sj[u], parent, aw, pb, -1.0, grad[t, k])
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def segment_terms(Q, margin, C, dist, grad0, grad1, iters, world
                   ):  # pragma: no cover - compiled
     """Continuous terms of each segment Q[t] → Q[t+1] against obstacles and fixed robot parts

@@ -29,7 +29,7 @@ from chekhov.collision.codes import BOX, HULL, SPHERE
 MAX_ITER = 32
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def support_value(kind, R, p, size, V, v0, v1, u):  # pragma: no cover - compiled
     """h(u) = max over the primitive of x·u, for any direction u (3,)."""
     h = p[0] * u[0] + p[1] * u[1] + p[2] * u[2]
@@ -52,7 +52,7 @@ def support_value(kind, R, p, size, V, v0, v1, u):  # pragma: no cover - compile
     return h + size[1] * abs(zu) + size[0] * np.sqrt(perp2)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def support_point(kind, R, p, size, V, v0, v1, u, sign, out):  # pragma: no cover - compiled
     """out = a point x of the primitive maximising x·(sign·u)."""
     for a in range(3):
@@ -94,7 +94,7 @@ def support_point(kind, R, p, size, V, v0, v1, u, sign, out):  # pragma: no cove
                 out[a] += size[0] * perp[a] / n
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _closest_on_simplex(S, n, v):  # pragma: no cover - compiled
     """Closest point v to the origin on the simplex S[:n] (n ≤ 4); S is reduced to the
     smallest face holding it. Returns the new n (4 when the origin is inside)."""
@@ -178,14 +178,14 @@ def _closest_on_simplex(S, n, v):  # pragma: no cover - compiled
     return m
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def primitives_collide(ka, Ra, pa, sa, kb, Rb, pb, sb, pad):  # pragma: no cover - compiled
     """False only when primitives A and B (kinds 0-2) are proven more than ``pad`` (m) apart."""
     V = np.empty((0, 3))
     return convex_collide(ka, Ra, pa, sa, V, 0, 0, pa, kb, Rb, pb, sb, V, 0, 0, pb, pad)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def convex_collide(ka, Ra, pa, sa, Va, a0, a1, ca, kb, Rb, pb, sb, Vb, b0, b1, cb, pad
                    ):  # pragma: no cover - compiled
     """False only when convex shapes A and B are proven more than ``pad`` (m) apart.
@@ -196,7 +196,7 @@ def convex_collide(ka, Ra, pa, sa, Va, a0, a1, ca, kb, Rb, pb, sb, Vb, b0, b1, c
                       pad) <= pad + 1e-9
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def convex_gap(ka, Ra, pa, sa, Va, a0, a1, ca, kb, Rb, pb, sb, Vb, b0, b1, cb, target
                ):  # pragma: no cover - compiled
     """A certified lower bound (m) on the distance between convex shapes A and B (shapes as

@@ -45,7 +45,7 @@ class DistanceGrid:
         return int(self.values.nbytes)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _fill(origin, h, kind, R, p, size, bound, out, reach=CAP):  # pragma: no cover - compiled
     """out = min(out, distance to each primitive), visiting only voxels within ``reach`` of
     it."""

@@ -34,7 +34,7 @@ from chekhov.collision.codes import (
 from chekhov.robot.chain_kinematics import chain_fk, chain_fk_arrays
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def transform_points(R, p, joint, local, out):  # pragma: no cover - compiled
     """out[i] = R[joint[i]] @ local[i] + p[joint[i]]."""
     for i in range(local.shape[0]):
@@ -44,7 +44,7 @@ def transform_points(R, p, joint, local, out):  # pragma: no cover - compiled
                          + R[j, a, 2] * local[i, 2] + p[j, a])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def signed_distance(kind, R, p, size, x):  # pragma: no cover - compiled
     """Signed distance (m) from point x to the obstacle surface (negative inside)."""
     d0 = x[0] - p[0]
@@ -71,7 +71,7 @@ def signed_distance(kind, R, p, size, x):  # pragma: no cover - compiled
     return np.sqrt(o0 * o0 + o1 * o1) + min(max(qr, qz), 0.0)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def signed_distance_normal(kind, R, p, size, x, n_out):  # pragma: no cover - compiled
     """Signed distance like :func:`signed_distance`; n_out gets the unit world gradient
     (the direction moving x away from the obstacle fastest)."""
@@ -124,7 +124,7 @@ def signed_distance_normal(kind, R, p, size, x, n_out):  # pragma: no cover - co
     return sd
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def grid_cell(origin, inv_h, h, values, m, c):  # pragma: no cover - compiled
     """(stored value q, distance e (m) from c to the voxel centre read) of grid m of the
     stacked grids ``values`` (M, n0, n1, n2), spacing h (m), at point c; q = ``codes.NONE``
@@ -149,7 +149,7 @@ def grid_cell(origin, inv_h, h, values, m, c):  # pragma: no cover - compiled
             h * np.sqrt((fi - i) ** 2 + (fj - j) ** 2 + (fk - k) ** 2) + 1e-9)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def grid_classify(origin, inv_h, h, delta, values, m, c, r):  # pragma: no cover - compiled
     """What grid m of the stacked distance grids ``values`` (see ``grid.py``) proves about
     sphere (c, r).
@@ -170,7 +170,7 @@ def grid_classify(origin, inv_h, h, delta, values, m, c, r):  # pragma: no cover
     return UNKNOWN
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def min_distance_batch(Q, world):  # pragma: no cover - compiled
     """Smallest signed distance (m) between any sphere and obstacle / fixed part / other
     sphere of ``world`` (a ``PackedWorld``), per row of Q."""
@@ -209,7 +209,7 @@ def min_distance_batch(Q, world):  # pragma: no cover - compiled
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _primitive_contacts(kind, R, p, size, o, src, a, b, cw, sr, margin, nrm, out, n
                         ):  # pragma: no cover - compiled
     """Append spheres a..b-1 closer than margin to primitive o (kind, R, p, size: that
@@ -224,7 +224,7 @@ def _primitive_contacts(kind, R, p, size, o, src, a, b, cw, sr, margin, nrm, out
     return n
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def sphere_contacts(q, margin, world):  # pragma: no cover - compiled
     """Every sphere within ``margin`` of an obstacle or of another sphere, at q.
 

@@ -62,7 +62,7 @@ class Work(NamedTuple):
     pend: np.ndarray
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def place_geometry(Rb, pb, gj, eR, ep, g, Rw, pw):  # pragma: no cover - compiled
     """World pose of group g's covered geometry (placement eR[g], ep[g] on joint gj[g])."""
     j = gj[g]
@@ -74,14 +74,14 @@ def place_geometry(Rb, pb, gj, eR, ep, g, Rw, pw):  # pragma: no cover - compile
                         + Rb[j, a, 2] * eR[g, 2, b])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def part_centre(hc, k, Rw, pw, out):  # pragma: no cover - compiled
     """World position of part k's centre hc[k], its geometry at (Rw, pw)."""
     for a in range(3):
         out[a] = Rw[a, 0] * hc[k, 0] + Rw[a, 1] * hc[k, 1] + Rw[a, 2] * hc[k, 2] + pw[a]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _confirm(gk, es, pstart, vstart, hv, hc, g, Rw, pw, kb, Rb, pb, sb, Vb, b0, b1, cb, pad,
              c):  # pragma: no cover - compiled
     """False only when every part of group g's geometry (kind gk[g], size es[g], parts
@@ -96,7 +96,7 @@ def _confirm(gk, es, pstart, vstart, hv, hc, g, Rw, pw, kb, Rb, pb, sb, Vb, b0, 
     return False
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _centers(Rb, pb, sj, sc, a, b, cw):  # pragma: no cover - compiled
     for i in range(a, b):
         j = sj[i]
@@ -105,7 +105,7 @@ def _centers(Rb, pb, sj, sc, a, b, cw):  # pragma: no cover - compiled
                         + pb[j, x])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _near(kind, R, p, size, c, r, cand):  # pragma: no cover - compiled
     """The primitives (kind, R, p, size) closer than r to point c, into cand; returns how
     many."""
@@ -117,7 +117,7 @@ def _near(kind, R, p, size, c, r, cand):  # pragma: no cover - compiled
     return n
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _group_hits(g, src, kind, R, p, size, ck, cand, ncand, cw, sr, rin, gstart, gk, pend,
                 npend):  # pragma: no cover - compiled
     """Spheres of group g against the primitives cand[:ncand] of (kind, R, p, size) (source
@@ -142,7 +142,7 @@ def _group_hits(g, src, kind, R, p, size, ck, cand, ncand, cw, sr, rin, gstart, 
     return npend
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def collisions(Q, world, work, out, stop):  # pragma: no cover - compiled
     """Whether each row of Q (N, K) collides (environment, fixed robot parts, or itself) in
     ``world`` (a ``PackedWorld``), in order, into out (N,) bool; with ``stop``, rows after the
@@ -322,7 +322,7 @@ def collisions(Q, world, work, out, stop):  # pragma: no cover - compiled
     return first
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def config_collides(q, world, work):  # pragma: no cover - compiled
     """True if configuration q (K,) collides in ``world``: :func:`collisions` of one row
     (callers that check many configurations hand them over together)."""
@@ -330,7 +330,7 @@ def config_collides(q, world, work):  # pragma: no cover - compiled
     return collisions(q.reshape((1, q.shape[0])), world, work, out, True) != NONE
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def make_work(K, world):  # pragma: no cover - compiled
     """A :class:`Work` for ``world`` and K joints."""
     G = world.groups.radius.shape[0]
@@ -342,7 +342,7 @@ def make_work(K, world):  # pragma: no cover - compiled
                 np.empty((G * C + world.groups.self_pairs.shape[0] + 1, 3), dtype=np.int64))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def valid_batch(Q, world):  # pragma: no cover - compiled
     """Collision-free flag for each row of Q (N, K)."""
     work = make_work(Q.shape[1], world)
@@ -351,7 +351,7 @@ def valid_batch(Q, world):  # pragma: no cover - compiled
     return ~out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def motions_valid(Q0, Q1, resolution, world):  # pragma: no cover - compiled
     """Whether each straight joint-space motion Q0[i] -> Q1[i] is free at every interior step.
 
@@ -385,7 +385,7 @@ def motions_valid(Q0, Q1, resolution, world):  # pragma: no cover - compiled
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def group_block_rates(Q, chain, groups, grids):  # pragma: no cover - compiled
     """Per group, the fraction of configurations Q (N, K) whose bounding sphere is not proved
     free of the static obstacles and fixed parts by the coarse grids: how often the group

@@ -16,7 +16,7 @@ Array = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _k_nearest(points_T, x, k):  # pragma: no cover - compiled
     dim, n = points_T.shape
     d2 = np.zeros(n)
@@ -68,7 +68,7 @@ def k_nearest(points: Array, x: Array, k: int) -> tuple[Array, IntArray]:
     return NearestNodes(points).query(x, k)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _nearest_poses(positions_T, rotations, p, R, k, n, w_rot):  # pragma: no cover - compiled
     d, idx = _k_nearest(positions_T, p, k)
     score = np.empty(len(idx))

@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 IntArray = NDArray[np.int64]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def recover_path(pred_row, src, dst):  # pragma: no cover - compiled
     """Nodes src → dst from the predecessor row of ``src`` (scipy's convention: -9999 for
     none); an empty array when dst is unreachable."""
@@ -41,7 +41,7 @@ def recover_path(pred_row, src, dst):  # pragma: no cover - compiled
     return out
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def astar_any(indptr, indices, weights, edge_id, src, is_goal, heuristic, node_ok,
               edge_ok, dst=-1):  # pragma: no cover - compiled
     """Shortest path src → the nearest node with ``is_goal`` True (or, with dst ≥ 0, to dst:
@@ -90,7 +90,7 @@ def astar_any(indptr, indices, weights, edge_id, src, is_goal, heuristic, node_o
     return out, g[found]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def astar(indptr, indices, weights, edge_id, src, dst, heuristic, node_ok,
           edge_ok):  # pragma: no cover - compiled
     """:func:`astar_any` to the single node dst (not reachable when ``node_ok[dst]`` is

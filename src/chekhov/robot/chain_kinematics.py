@@ -119,7 +119,7 @@ class ChainKinematics:
         return out, ok
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _axis_rotation(x, y, z, angle, out):  # pragma: no cover - compiled
     """Rodrigues: rotation by ``angle`` (rad) about the unit axis (x, y, z), written into out
     (3, 3)."""
@@ -137,7 +137,7 @@ def _axis_rotation(x, y, z, angle, out):  # pragma: no cover - compiled
     out[2, 2] = t * z * z + c
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _mul3(A, B, out):  # pragma: no cover - compiled
     """out = A @ B for 3x3 matrices (out must not alias A or B)."""
     for i in range(3):
@@ -145,7 +145,7 @@ def _mul3(A, B, out):  # pragma: no cover - compiled
             out[i, j] = A[i, 0] * B[0, j] + A[i, 1] * B[1, j] + A[i, 2] * B[2, j]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def chain_fk_arrays(q, parent, R0, p0, axis, R_out, p_out):  # pragma: no cover - compiled
     """World rotation R_out (K, 3, 3) and origin p_out (K, 3) of each joint at q, the chain
     given by its arrays (those of :class:`KinematicChain`: parent, R_parent_joint,
@@ -175,14 +175,14 @@ def chain_fk_arrays(q, parent, R0, p0, axis, R_out, p_out):  # pragma: no cover 
                 R_out[k, a, b] = A[a, 0] * Rq[0, b] + A[a, 1] * Rq[1, b] + A[a, 2] * Rq[2, b]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def chain_fk(q, chain, R_out, p_out):  # pragma: no cover - compiled
     """:func:`chain_fk_arrays` of ``chain`` (a :class:`KinematicChain`) at q."""
     chain_fk_arrays(q, chain.parent, chain.R_parent_joint, chain.p_parent_joint, chain.axis,
                     R_out, p_out)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def ee_batch(Q, chain, Rf, pf, R_out, p_out):  # pragma: no cover - compiled
     K = Q.shape[1]
     Rj = np.empty((K, 3, 3))
@@ -194,7 +194,7 @@ def ee_batch(Q, chain, Rf, pf, R_out, p_out):  # pragma: no cover - compiled
         p_out[i] = pj[K - 1] + Rj[K - 1] @ pf
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def log3(R):  # pragma: no cover - compiled
     """Rotation vector (3,) of a rotation matrix, rad."""
     tr = R[0, 0] + R[1, 1] + R[2, 2]
@@ -219,7 +219,7 @@ def log3(R):  # pragma: no cover - compiled
     return theta / (2.0 * np.sin(theta)) * w
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _solve_spd6(A, b, x):  # pragma: no cover - compiled
     """x = A⁻¹ b for a symmetric positive definite 6x6 A (Cholesky; A is overwritten)."""
     n = 6
@@ -246,7 +246,7 @@ def _solve_spd6(A, b, x):  # pragma: no cover - compiled
         x[i] = v / A[i, i]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def ik_descend(R_t, p_t, q0, chain, Rf, pf, lower, upper, max_iterations, pos_tol,
                rot_tol, damping, q_out):  # pragma: no cover - compiled
     """Damped least squares from q0 towards the target pose (R_t, p_t); writes q_out and
@@ -317,7 +317,7 @@ def ik_descend(R_t, p_t, q0, chain, Rf, pf, lower, upper, max_iterations, pos_to
     return pos_err, rot_err
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def ik_batch(R_t, p_t, Q0, chain, Rf, pf, lower, upper, max_iterations, pos_tol,
              rot_tol, damping, stop_after, Q_out, ok):  # pragma: no cover - compiled
     """IK from each seed row of Q0; after ``stop_after`` converged seeds the rest are skipped
