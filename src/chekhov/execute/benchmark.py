@@ -30,9 +30,11 @@ from chekhov.world import World
 
 Array = NDArray[np.float64]
 
-REACT_IMPROVE_S = 0.005
+REACT_IMPROVE_S = 0.0
 """s, Roadmap + TrajOpt's improvement time in the executive: a replan answers with its first
-certified path (shortened) and little more; the budget is the reaction time."""
+certified path (shortened), nothing after; the budget is the reaction time. (Measured on 8
+episodes each of tabletop_pole and shelf_boxes, one run: 5 ms of improvement gave the same or
+a longer time to goal, 2-4 ms more planning wall time at the median.)"""
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,8 @@
   executed positions and accelerations from finite differences of the commanded velocities
   (both exact bounds by the mean value theorem), ticks displaced by a kick left out;
 * unavoidable contact (only for an episode with a collision): from the executed state one
-  reaction window (sensor period + latency + planning budget) before the first contact,
+  reaction window (sensor period + latency + planning budget) before the first contact (or
+  from the kicked state, when a kick came after that),
   :data:`ESCAPES` random motions within the limits (each joint at a constant acceleration
   drawn within its limit, velocities clipped) are tried against the obstacles' true motion
   until :data:`ESCAPE_AFTER_S` after the contact; none collision-free means no motion within
@@ -164,9 +165,14 @@ def violation_kinds(world: World, record: EpisodeRecord, limits: Limits) -> tupl
 def _escapable(truth: TrueWorld, record: EpisodeRecord, hit: int, limits: Limits,
                window_s: float) -> bool:
     """Whether one of :data:`ESCAPES` random motions within the limits from the state one
-    reaction window before tick ``hit`` stays free until :data:`ESCAPE_AFTER_S` after it."""
+    reaction window before tick ``hit`` — or, when a kick displaced the arm after that, from
+    the kicked state (no motion undoes a displacement the script imposes) — stays free until
+    :data:`ESCAPE_AFTER_S` after it."""
     t_hit = float(record.times[hit])
     i0 = int(np.searchsorted(record.times, t_hit - window_s))
+    kicked = np.flatnonzero(record.kicked[i0:hit + 1])
+    if len(kicked):
+        i0 += int(kicked[-1])
     q0, v0 = record.q[i0], record.qd[i0]
     t0 = float(record.times[i0])
     ts = np.arange(0.0, t_hit - t0 + ESCAPE_AFTER_S, 0.01)

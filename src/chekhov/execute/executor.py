@@ -222,10 +222,8 @@ class Executor:
         t = obs.t
         self.reactions.append(Reaction("kick", t))
         start = State(np.asarray(obs.q, dtype=float), np.asarray(obs.qd, dtype=float), last.qdd)
-        t_back = min(t + self.config.rejoin_s, self.motion.t_end)
-        back = join(start, t, self.motion, t_back, self.limits, self.bounds)
-        if back is not None and (self._free(back, t, back.pieces[0].t_end + 0.1)
-                                 or self._safe([back], t).all()):
+        back = self._rejoin(start, t)
+        if back is not None:
             self.counters.rejoins += 1
             self._install(back)
             self._resolve(t + self.config.control_dt_s, t)
@@ -244,6 +242,22 @@ class Executor:
         self._install(move)
         self._react(t + self.config.control_dt_s)
         self._need = "kick"
+
+    def _rejoin(self, start: State, t: float) -> Motion | None:
+        """A Ruckig join from the kicked ``start`` back onto the motion (``rejoin_s`` ahead,
+        else at its end) that is free (exact, to 0.1 s past the join) or safe in time of the
+        predicted motion — with the margin, else (obstacles tracked) without: a kicked arm
+        beside the forearm had stopped where it stood, in the forearm's way."""
+        assert self.motion is not None
+        ends = dict.fromkeys((min(t + self.config.rejoin_s, self.motion.t_end),
+                              self.motion.t_end))
+        backs = [b for b in (join(start, t, self.motion, e, self.limits, self.bounds)
+                             for e in ends) if b is not None]
+        for b in backs:
+            if self._free(b, t, b.pieces[0].t_end + 0.1) or self._safe([b], t).all():
+                return b
+        return next((b for b in backs if self.tracks.tracks and
+                     self.evader.safe_in_time([b], t, self._seen, 0.0).all()), None)
 
     def _monitor(self, t: float) -> None:
         """Check the rest of the motion against the predicted obstacles (a sensor frame)."""
