@@ -15,9 +15,9 @@ unavoidable_collision_episodes, min_clearance_m and p5_clearance_m (over episode
 distance to the moving obstacles), reaction_latency_ms_p50/_p95/_p99 (disturbance observed →
 first answering motion commanded: a rejoin, a hold short of the conflict, a brake, a dodge
 or a new plan), resolve_latency_ms_p50/_p95/_p99 (→ a motion to the goal that answers it),
-replans_per_episode, safe_stops, dodges, holds, time_to_goal_ratio (median, against the same
-episode undisturbed), limit_violations); else a table. ``--out`` also writes the JSON lines
-to a file (atomically).
+replans_per_episode, safe_stops, dodges, holds, time_to_goal_ratio (median, against the
+episode's task alone: its goal changes, no forearm, no kick), limit_violations); else a
+table. ``--out`` also writes the JSON lines to a file (atomically).
 """
 
 from __future__ import annotations

@@ -4,8 +4,12 @@ episodes with a forearm sweeping across, a goal change and a kick each
 (:mod:`~chekhov.execute.evaluate`), summed up in one JSON-able dict per scene and planner.
 
 Each episode first runs undisturbed (the same start, goal and executive, nothing happening):
-its duration times the script and is the reference of ``time_to_goal_ratio``. The scripts
-come from the first planner's undisturbed runs, so every planner gets the same episodes.
+its duration times the script. The scripts come from the first planner's undisturbed runs,
+so every planner gets the same episodes. Each planner then runs the episode's task alone —
+its goal changes, no forearm, no kick (:meth:`EpisodeScript.task_only`) — and that run's
+duration is the reference of the episode's deadline and of ``time_to_goal_ratio`` (the goal
+change can send the arm much farther than the first goal: a deadline from the first goal's
+duration alone had failed an episode that moved 1 m more, undisturbed by anything else).
 """
 
 from __future__ import annotations
@@ -55,8 +59,8 @@ class ReactConfig:
 
 @dataclass(frozen=True, eq=False)
 class EpisodeResult:
-    """One episode of one planner: its script, record, verdict, and this planner's
-    undisturbed run's duration (s; None when that run did not reach the goal). An episode is
+    """One episode of one planner: its script, record, verdict, and the duration of this
+    planner's run of the task alone (s; None when that run did not reach the goal). An episode is
     *reachable* when the first planner's undisturbed run reached its goal (the goal changes
     to another reachable pre-grasp and the forearm leaves): only those are run."""
 
@@ -121,9 +125,9 @@ def react_scene(world: World, config: ReactConfig,
 def _episode(world: World, planner: Planner, script: EpisodeScript, config: ReactConfig,
              t_plain: float | None = None) -> EpisodeResult:
     """One scripted episode; ``t_plain``: its undisturbed duration (s) when already run with
-    this planner, else it is run here."""
-    if t_plain is None:
-        plain = run_one(world, planner, script.undisturbed(), config.undisturbed_limit_s,
+    this planner and the script has no goal change, else the task alone is run here."""
+    if t_plain is None or script.goal_changes:
+        plain = run_one(world, planner, script.task_only(), config.undisturbed_limit_s,
                         config)
         t_plain = plain.t_reached
     deadline = config.deadline_factor * (t_plain or config.undisturbed_limit_s / 3) + \

@@ -77,6 +77,12 @@ class EpisodeScript:
     def undisturbed(self) -> EpisodeScript:
         return EpisodeScript(self.index, self.q_start, self.goal, self.goal_label)
 
+    def task_only(self) -> EpisodeScript:
+        """The episode's task as given — its goal changes too — with no forearm and no kick:
+        the reference its deadline and time to goal are measured against."""
+        return EpisodeScript(self.index, self.q_start, self.goal, self.goal_label,
+                             goal_changes=self.goal_changes)
+
 
 def episode_rng(seed: int, index: int) -> np.random.Generator:
     return np.random.default_rng([seed, index, 18])
