@@ -202,6 +202,8 @@ def test_scripted_episodes_never_collide_with_the_true_forearm(world, planner, l
         ee = world.robot.compute_ee_poses(plain.q)[:, :3, 3]
         script = make_script(world, 0, index, plain.t_reached, ee, plain.q)
         assert len(script.obstacles) == 3 and script.kicks and script.goal_changes
+        task = script.task_only()           # the deadline's reference: the goal change only
+        assert task.goal_changes == script.goal_changes and not (task.obstacles or task.kicks)
         t_in = script.obstacles[0].t_start       # it appears clear of the arm (coal's distance)
         q_then = plain.q[min(int(t_in / plain.t_reached * len(plain.q)), len(plain.q) - 1)]
         assert TrueWorld(world, script.obstacles).clearance(q_then, t_in) >= 0.1
