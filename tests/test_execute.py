@@ -272,9 +272,9 @@ def test_a_resting_arm_dodges_a_forearm_coming_at_it(world, limits):
     """A ball flying at the resting arm's elbow at 0.5 m/s: the directed dodge targets push the
     arm's points nearest its path away from it, and a dodge is found that is free at every
     step of the ball's predicted motion (time windows) — and of its true motion."""
-    from chekhov.execute.evade import Evader, EvadeSettings, _arm_points, _to_segment
+    from chekhov.execute.evade import Evader, EvadeSettings, _arm_points
     from chekhov.execute.motion import Bounds, Motion
-    from chekhov.execute.obstacles import ObstacleTracks, obstacles_at
+    from chekhov.execute.obstacles import ObstacleTracks, obstacles_at, to_segment
     q0, _ = start_and_goal(world, 0, 0)
     elbow = world.robot.compute_joint_placements(q0)[3, :3, 3]
     d = np.array([-1.0, 0.0, 0.0])
@@ -290,7 +290,7 @@ def test_a_resting_arm_dodges_a_forearm_coming_at_it(world, limits):
     a, b = ball.pose(t0)[:3, 3], ball.pose(t0 + c.horizon_s)[:3, 3]
 
     def gap(q):
-        return min(float(np.linalg.norm(_to_segment(p, a, b))) for p in _arm_points(world, q))
+        return float(np.linalg.norm(to_segment(_arm_points(world, q), a, b), axis=1).min())
     directed = evader.directed(q0, t0)
     assert len(directed) > 0
     assert max(gap(q) for q in directed) > gap(q0) + 0.08

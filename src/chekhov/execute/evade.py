@@ -16,7 +16,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from chekhov.execute.motion import Bounds, Motion, State, brake_along, ruckig_piece, stop_time
-from chekhov.execute.obstacles import Obstacles, ObstacleTracks, predicted_obstacles
+from chekhov.execute.obstacles import (
+    Obstacles,
+    ObstacleTracks,
+    predicted_obstacles,
+    to_segment,
+)
 from chekhov.timing import Limits
 from chekhov.world import World
 
@@ -149,8 +154,8 @@ class Evader:
         paths = [(self.tracks.pose(n, t0)[:3, 3],
                   self.tracks.pose(n, t0 + self.settings.horizon_s)[:3, 3])
                  for n in self.tracks.tracks]
-        near = np.array([min((_to_segment(p, a, b) for a, b in paths),
-                             key=lambda d: float(np.linalg.norm(d))) for p in P])
+        D = np.stack([to_segment(P, a, b) for a, b in paths])      # (paths, N, 3)
+        near = D[np.argmin(np.linalg.norm(D, axis=2), axis=0), np.arange(len(P))]
         order = np.argsort(np.linalg.norm(near, axis=1))[:DODGE_POINTS]
         J = _point_jacobians(self.world, q, P)
         up = np.array([0.0, 0.0, 1.0])
@@ -184,10 +189,3 @@ def _point_jacobians(world: World, q: Array, P: Array) -> Array:
         dq[j] = FD_RAD
         J[:, :, j] = (_arm_points(world, q + dq) - P) / FD_RAD
     return J
-
-
-def _to_segment(p: Array, a: Array, b: Array) -> Array:
-    """(3,) m: from the point of segment a-b nearest p to p."""
-    ab = b - a
-    s = float(np.clip(np.dot(p - a, ab) / max(float(np.dot(ab, ab)), 1e-12), 0.0, 1.0))
-    return p - (a + s * ab)

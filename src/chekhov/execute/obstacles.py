@@ -65,6 +65,13 @@ def obstacles_at(moving: tuple[MovingObstacle, ...], t: float) -> dict[str, tupl
     return {m.name: (m.shape, m.pose(t)) for m in moving if m.present(t)}
 
 
+def to_segment(P: Array, a: Array, b: Array) -> Array:
+    """(N, d) m: from the point of segment a-b ((d,) each) nearest each row of P (N, d) to it."""
+    ab = b - a
+    s = np.clip((P - a) @ ab / max(float(ab @ ab), 1e-12), 0.0, 1.0)
+    return P - (a + s[:, None] * ab)
+
+
 def inflate(shape: Shape, margin: float) -> Shape:
     """``shape`` grown by ``margin`` (m) on every side."""
     if shape.kind == "box":

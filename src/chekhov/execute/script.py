@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from chekhov.cases import sample_task_case, task_targets
-from chekhov.execute.obstacles import MovingObstacle
+from chekhov.execute.obstacles import MovingObstacle, to_segment
 from chekhov.robot.goal import Goal
 from chekhov.scene.model import Shape
 from chekhov.world import World
@@ -154,9 +154,7 @@ def _arm_distance(world: World, q_path: Array, u: float, a: Array, b: Array) -> 
                      world.robot.compute_ee_pose(q)[:3, 3]])
     f = np.linspace(0.0, 1.0, 6)[:, None, None]
     along = (pts[:-1][None] * (1 - f) + pts[1:][None] * f).reshape(-1, 3)
-    ab = b - a
-    s = np.clip((along - a) @ ab / max(float(ab @ ab), 1e-12), 0.0, 1.0)
-    return float(np.linalg.norm(along - (a + s[:, None] * ab), axis=1).min())
+    return float(np.linalg.norm(to_segment(along, a, b), axis=1).min())
 
 
 def _goal_change(world: World, rng: np.random.Generator, duration_s: float, label: str
@@ -170,10 +168,7 @@ def _goal_change(world: World, rng: np.random.Generator, duration_s: float, labe
 
 def _horizontal_distance(c: Array, p0: Array, p1: Array) -> float:
     """m, the distance in the xy plane from point c to the segment p0-p1."""
-    a, b, x = p0[:2], p1[:2], c[:2]
-    ab = b - a
-    s = float(np.clip(np.dot(x - a, ab) / max(float(np.dot(ab, ab)), 1e-12), 0.0, 1.0))
-    return float(np.linalg.norm(a + s * ab - x))
+    return float(np.linalg.norm(to_segment(c[None, :2], p0[:2], p1[:2])))
 
 
 def _axis_rotation(z: Array) -> Array:
