@@ -37,10 +37,9 @@ import numpy as np
 from numba import njit
 
 from chekhov.collision import packed
-from chekhov.collision.codes import NO_GEOMETRY, NONE
-from chekhov.collision.gjk import convex_gap
-from chekhov.collision.kernels import grid_cell, signed_distance
-from chekhov.collision.validity import collisions, make_work, part_centre, place_geometry
+from chekhov.collision.codes import NONE
+from chekhov.collision.kernels import geometry_gap, grid_cell, signed_distance
+from chekhov.collision.validity import collisions, make_work
 from chekhov.robot.chain_kinematics import chain_fk_arrays
 
 
@@ -170,30 +169,6 @@ GAP_LOOK = 8
 confirmation margins) when GJK measures it: a farther target costs more GJK iterations."""
 
 
-@njit(cache=True, nogil=True, inline="always")
-def _geometry_gap(geo, gj, Rc, pc, a, b, target, Rw, pw, cw):  # pragma: no cover - compiled
-    """A certified lower bound (m) on the distance between the geometries groups a and b
-    cover (every pair of their parts, :func:`gjk.convex_gap` towards ``target``), or -inf
-    when either has none; joint poses Rc, pc of the substep."""
-    gk = geo.kind
-    if gk[a] == NO_GEOMETRY or gk[b] == NO_GEOMETRY:
-        return -np.inf
-    start, vstart, hv, hc = geo.part_start, geo.vert_start, geo.verts, geo.part_centre
-    place_geometry(Rc, pc, gj, geo.R, geo.p, a, Rw[0], pw[0])
-    place_geometry(Rc, pc, gj, geo.R, geo.p, b, Rw[1], pw[1])
-    gap = np.inf
-    for i in range(start[a], start[a + 1]):
-        part_centre(hc, i, Rw[0], pw[0], cw[0])
-        for j in range(start[b], start[b + 1]):
-            part_centre(hc, j, Rw[1], pw[1], cw[1])
-            gap = min(gap, convex_gap(gk[a], Rw[0], pw[0], geo.size[a], hv, vstart[i],
-                                      vstart[i + 1], cw[0], gk[b], Rw[1], pw[1], geo.size[b],
-                                      hv, vstart[j], vstart[j + 1], cw[1], target))
-            if gap <= 0.0:
-                return gap
-    return gap
-
-
 @njit(cache=True, nogil=True)
 def _walk(P0, P1, n, m_first, m_last, check_ends, world, work, ww
           ):  # pragma: no cover - compiled
@@ -281,7 +256,7 @@ def _walk(P0, P1, n, m_first, m_last, check_ends, world, work, ww
             d = _pair_gap(start, sr, swc, a, b)
             if d <= 0.0:   # overlapping spheres: the covered geometries' gap, past the pads
                 pads = geo.pad[a] + geo.pad[b]
-                d = _geometry_gap(geo, gj, Rc, pc, a, b, pads + GAP_LOOK * pair_sphere_step[k],
+                d = geometry_gap(geo, gj, Rc, pc, a, b, pads + GAP_LOOK * pair_sphere_step[k],
                                   Rw, pw, cw) - pads
             if d > 0.0:
                 puntil[k] = m + int(d / pair_sphere_step[k])
@@ -327,7 +302,7 @@ def with_margin(world, pad, grow):  # pragma: no cover - compiled
     groups = packed.Groups(grp.start, grp.centre, grp.radius + grow, grp.joint, grp.lever,
                            grp.self_pairs)
     return packed.PackedWorld(world.chain, spheres, groups, geometry, world.fixed, world.grids,
-                              world.static, world.dynamic, world.obstacles)
+                              world.static, world.dynamic, world.obstacles, world.self_tables)
 
 
 @njit(cache=True, nogil=True)

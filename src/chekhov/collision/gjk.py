@@ -95,14 +95,13 @@ def support_point(kind, R, p, size, V, v0, v1, u, sign, out):  # pragma: no cove
 
 
 @njit(cache=True, nogil=True)
-def _closest_on_simplex(S, n, v):  # pragma: no cover - compiled
+def _closest_on_simplex(S, n, v, idx, E, x, G, b):  # pragma: no cover - compiled
     """Closest point v to the origin on the simplex S[:n] (n ≤ 4); S is reduced to the
-    smallest face holding it. Returns the new n (4 when the origin is inside)."""
+    smallest face holding it. Returns the new n (4 when the origin is inside). idx (4,)
+    int64, E (3, 3), x (3,), G (3, 3), b (3,): work space (allocations here, a dozen a call,
+    had cost as much as the arithmetic)."""
     best = np.inf
     bestmask = 0
-    idx = np.empty(4, dtype=np.int64)
-    E = np.empty((3, 3))
-    x = np.empty(3)
     for mask in range(1, 1 << n):
         m = 0
         for i in range(n):
@@ -120,8 +119,10 @@ def _closest_on_simplex(S, n, v):  # pragma: no cover - compiled
                 continue
             mu0 = -(E[0, 0] * w0[0] + E[0, 1] * w0[1] + E[0, 2] * w0[2]) / g
         elif m >= 3:
-            G = np.zeros((3, 3))
-            b = np.zeros(3)
+            for r in range(3):
+                b[r] = 0.0
+                for c in range(3):
+                    G[r, c] = 0.0
             for r in range(m - 1):
                 b[r] = -(E[r, 0] * w0[0] + E[r, 1] * w0[1] + E[r, 2] * w0[2])
                 for c in range(m - 1):
@@ -211,6 +212,11 @@ def convex_gap(ka, Ra, pa, sa, Va, a0, a1, ca, kb, Rb, pb, sb, Vb, b0, b1, cb, t
     u = np.empty(3)
     xa = np.empty(3)
     xb = np.empty(3)
+    idx = np.empty(4, dtype=np.int64)
+    E = np.empty((3, 3))
+    x = np.empty(3)
+    G = np.empty((3, 3))
+    b = np.empty(3)
     for a in range(3):
         v[a] = ca[a] - cb[a]
     n = 0
@@ -221,23 +227,23 @@ def convex_gap(ka, Ra, pa, sa, Va, a0, a1, ca, kb, Rb, pb, sb, Vb, b0, b1, cb, t
             return best
         for a in range(3):
             u[a] = v[a] / nv
-        if nv <= target:   # a point of A − B within target of the origin: no proof above it
-            return max(best, -support_value(ka, Ra, pa, sa, Va, a0, a1, -u)
-                       - support_value(kb, Rb, pb, sb, Vb, b0, b1, u))
-        # certificate along u: min over A − B of x·u
-        sep = (-support_value(ka, Ra, pa, sa, Va, a0, a1, -u)
-               - support_value(kb, Rb, pb, sb, Vb, b0, b1, u))
-        if sep > target + 1e-9:
-            return sep
-        best = max(best, sep)
+        # the extreme points of A along −u and of B along u: w = xa − xb is the point of
+        # A − B with the least x·u, and sep = w·u the certificate along u (one scan of each
+        # shape's support points gives both)
         support_point(ka, Ra, pa, sa, Va, a0, a1, u, -1.0, xa)
         support_point(kb, Rb, pb, sb, Vb, b0, b1, u, 1.0, xb)
         w0, w1, w2 = xa[0] - xb[0], xa[1] - xb[1], xa[2] - xb[2]
+        sep = w0 * u[0] + w1 * u[1] + w2 * u[2]
+        if nv <= target:   # a point of A − B within target of the origin: no proof above it
+            return max(best, sep)
+        if sep > target + 1e-9:
+            return sep
+        best = max(best, sep)
         # no progress: GJK has converged on a distance ≤ target (the certificate failed)
         if nv * nv - (v[0] * w0 + v[1] * w1 + v[2] * w2) <= 1e-12 * nv * nv:
             return best
         S[n, 0], S[n, 1], S[n, 2] = w0, w1, w2
-        n = _closest_on_simplex(S, n + 1, v)
+        n = _closest_on_simplex(S, n + 1, v, idx, E, x, G, b)
         if n == 4:
             return best  # origin inside the simplex
     return best

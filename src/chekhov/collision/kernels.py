@@ -25,12 +25,14 @@ from chekhov.collision.codes import (
     FIXED,
     GRID_SATURATED,
     INVALID,
+    NO_GEOMETRY,
     OBSTACLE,
     SELF,
     SPHERE,
     UNKNOWN,
     VALID,
 )
+from chekhov.collision.gjk import convex_gap
 from chekhov.robot.chain_kinematics import chain_fk, chain_fk_arrays
 
 
@@ -284,3 +286,46 @@ def sphere_contacts(q, margin, world):  # pragma: no cover - compiled
     for i in range(n):
         points[i] = cw[s_out[i]] - sr[s_out[i]] * n_out[i]
     return s_out[:n], o_out[:n], k_out[:n], d_out[:n], n_out[:n], points
+
+
+@njit(cache=True, nogil=True, inline="always")
+def place_geometry(Rb, pb, gj, eR, ep, g, Rw, pw):  # pragma: no cover - compiled
+    """World pose of group g's covered geometry (placement eR[g], ep[g] on joint gj[g])."""
+    j = gj[g]
+    for a in range(3):
+        pw[a] = (Rb[j, a, 0] * ep[g, 0] + Rb[j, a, 1] * ep[g, 1] + Rb[j, a, 2] * ep[g, 2]
+                 + pb[j, a])
+        for b in range(3):
+            Rw[a, b] = (Rb[j, a, 0] * eR[g, 0, b] + Rb[j, a, 1] * eR[g, 1, b]
+                        + Rb[j, a, 2] * eR[g, 2, b])
+
+
+@njit(cache=True, nogil=True, inline="always")
+def part_centre(hc, k, Rw, pw, out):  # pragma: no cover - compiled
+    """World position of part k's centre hc[k], its geometry at (Rw, pw)."""
+    for a in range(3):
+        out[a] = Rw[a, 0] * hc[k, 0] + Rw[a, 1] * hc[k, 1] + Rw[a, 2] * hc[k, 2] + pw[a]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def geometry_gap(geo, gj, Rc, pc, a, b, target, Rw, pw, cw):  # pragma: no cover - compiled
+    """A certified lower bound (m) on the distance between the geometries groups a and b
+    cover (every pair of their parts, :func:`gjk.convex_gap` towards ``target``), or -inf
+    when either has none; joint poses Rc, pc of the substep."""
+    gk = geo.kind
+    if gk[a] == NO_GEOMETRY or gk[b] == NO_GEOMETRY:
+        return -np.inf
+    start, vstart, hv, hc = geo.part_start, geo.vert_start, geo.verts, geo.part_centre
+    place_geometry(Rc, pc, gj, geo.R, geo.p, a, Rw[0], pw[0])
+    place_geometry(Rc, pc, gj, geo.R, geo.p, b, Rw[1], pw[1])
+    gap = np.inf
+    for i in range(start[a], start[a + 1]):
+        part_centre(hc, i, Rw[0], pw[0], cw[0])
+        for j in range(start[b], start[b + 1]):
+            part_centre(hc, j, Rw[1], pw[1], cw[1])
+            gap = min(gap, convex_gap(gk[a], Rw[0], pw[0], geo.size[a], hv, vstart[i],
+                                      vstart[i + 1], cw[0], gk[b], Rw[1], pw[1], geo.size[b],
+                                      hv, vstart[j], vstart[j + 1], cw[1], target))
+            if gap <= 0.0:
+                return gap
+    return gap

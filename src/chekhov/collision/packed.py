@@ -34,6 +34,7 @@ from chekhov.collision.primitives import (
     shape_primitive,
     split_triangles,
 )
+from chekhov.collision.self_table import SelfTables, robot_self_tables
 from chekhov.robot.chain_kinematics import KinematicChain, chain_fk, kinematic_chain
 from chekhov.robot.robot import Robot
 from chekhov.robot.spheres import SphereModel, build_sphere_model
@@ -170,7 +171,8 @@ class PackedWorld(NamedTuple):
     chain: :class:`~chekhov.robot.chain_kinematics.KinematicChain`; spheres, groups, geometry
     (the geometry each group covers), fixed (fixed robot parts), grids: see their classes;
     static, dynamic: the scene's static and dynamic obstacles; obstacles: all of them, in the
-    order of ``FastChecker.obstacle_names`` (contacts and distance terms index it)."""
+    order of ``FastChecker.obstacle_names`` (contacts and distance terms index it);
+    self_tables: gap bounds of the self pairs one or two joints move (``self_table.py``)."""
 
     chain: KinematicChain
     spheres: Spheres
@@ -181,6 +183,7 @@ class PackedWorld(NamedTuple):
     static: Primitives
     dynamic: Primitives
     obstacles: Primitives
+    self_tables: SelfTables
 
     @property
     def grid_bytes(self) -> int:
@@ -253,7 +256,9 @@ def pack_world(robot: Robot, scene: Scene | None = None, *, spheres: SphereModel
     return PackedWorld(
         chain=chain, spheres=sph, groups=groups, geometry=geometry, fixed=fixed, grids=grids,
         static=static, dynamic=pack_primitives(p for p, dyn in obstacles.values() if dyn),
-        obstacles=pack_primitives(p for p, _ in obstacles.values()))
+        obstacles=pack_primitives(p for p, _ in obstacles.values()),
+        self_tables=robot_self_tables(robot, chain, groups, geometry,
+                                      sph.centre.tobytes() + sph.radius.tobytes()))
 
 
 def lever_arms(parent: np.ndarray, p_parent_joint: np.ndarray, group_joint: np.ndarray,

@@ -8,8 +8,9 @@ the covered geometry, radius ``inner``) touching the primitive is a certain coll
 otherwise the covered geometry itself (``GroupGeometry``: a box, cylinder or sphere, or the
 convex hull of each connected part of a mesh) is tested against the primitive with
 :func:`gjk.convex_collide`, once per (geometry, primitive) and configuration; a geometry with
-neither counts the sphere hit as a collision. Self-collision: group bounding spheres, then
-sphere pairs, then the same three steps on the two geometries (every part of one against
+neither counts the sphere hit as a collision. Self-collision: group bounding spheres, then the
+pair's gap table when one or two joints move them apart (``self_table.py``), then sphere
+pairs, then the same three steps on the two geometries (every part of one against
 every part of the other). Fixed robot parts are the boxes that contain their meshes
 (``primitives.geometry_primitives``), so a hit is confirmed against such a box. Every "free"
 answer is so proved for the solid hulls, which contain the meshes. Sphere centres are only
@@ -42,7 +43,14 @@ from chekhov.collision.codes import (
     VALID,
 )
 from chekhov.collision.gjk import convex_collide
-from chekhov.collision.kernels import grid_classify, signed_distance, transform_points
+from chekhov.collision.kernels import (
+    grid_classify,
+    part_centre,
+    place_geometry,
+    signed_distance,
+    transform_points,
+)
+from chekhov.collision.self_table import table_gap
 from chekhov.robot.chain_kinematics import chain_fk_arrays
 
 
@@ -60,25 +68,6 @@ class Work(NamedTuple):
     done: np.ndarray
     cand: np.ndarray
     pend: np.ndarray
-
-
-@njit(cache=True, nogil=True, inline="always")
-def place_geometry(Rb, pb, gj, eR, ep, g, Rw, pw):  # pragma: no cover - compiled
-    """World pose of group g's covered geometry (placement eR[g], ep[g] on joint gj[g])."""
-    j = gj[g]
-    for a in range(3):
-        pw[a] = (Rb[j, a, 0] * ep[g, 0] + Rb[j, a, 1] * ep[g, 1] + Rb[j, a, 2] * ep[g, 2]
-                 + pb[j, a])
-        for b in range(3):
-            Rw[a, b] = (Rb[j, a, 0] * eR[g, 0, b] + Rb[j, a, 1] * eR[g, 1, b]
-                        + Rb[j, a, 2] * eR[g, 2, b])
-
-
-@njit(cache=True, nogil=True, inline="always")
-def part_centre(hc, k, Rw, pw, out):  # pragma: no cover - compiled
-    """World position of part k's centre hc[k], its geometry at (Rw, pw)."""
-    for a in range(3):
-        out[a] = Rw[a, 0] * hc[k, 0] + Rw[a, 1] * hc[k, 1] + Rw[a, 2] * hc[k, 2] + pw[a]
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -176,6 +165,7 @@ def collisions(Q, world, work, out, stop):  # pragma: no cover - compiled
     geo = world.geometry
     gk, eR, ep, es, pad = geo.kind, geo.R, geo.p, geo.size, geo.pad
     pstart, vstart, hv, hcen = geo.part_start, geo.vert_start, geo.verts, geo.part_centre
+    tpair, tjoint, tlo, tinv, tgap = world.self_tables
 
     # the confirmations' work space, allocated once for the batch (six small allocations
     # per configuration cost as much as the grid lookups of a free one)
@@ -266,6 +256,8 @@ def collisions(Q, world, work, out, stop):  # pragma: no cover - compiled
             z = gw[a, 2] - gw[b, 2]
             if x * x + y * y + z * z >= (gr[a] + gr[b]) ** 2:
                 continue
+            if table_gap(q, i, tpair, tjoint, tlo, tinv, tgap) > pad[a] + pad[b]:
+                continue      # proved apart over the whole cell of the joints between them
             for g in (a, b):
                 if not done[g]:
                     _centers(Rb, pb, sj, sc, gstart[g], gstart[g + 1], cw)
