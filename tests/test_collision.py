@@ -330,3 +330,47 @@ def test_convex_gap_is_a_lower_bound_on_the_distance_that_converges():
     pa, pb = np.zeros(3), np.array([1.03, 0.0, 0.0])
     got = convex_gap(BOX, np.eye(3), pa, half, V, 0, 0, pa, BOX, Rz, pb, half, V, 0, 0, pb, 1.0)
     assert 0.03 - 1e-6 <= got <= 0.03 + 1e-12
+
+
+@pytest.mark.parametrize("scene", ["panda_cage", "tabletop_pole"])
+def test_dense_path_check_near_contact_equals_every_configuration(world_of, scene):
+    """Paths that graze the scene, millimetres from contact all along (where a group's
+    spheres touch and its certificate comes from GJK on the covered geometry), with and
+    without the certification's margins: the dense walk's first colliding index is the one
+    checking every configuration of densify(path, 100) gives."""
+    from chekhov.collision import dense_path, validity
+    from chekhov.collision.exact import densify
+
+    w = world_of(scene)
+    fast = w.fast
+    rng = np.random.default_rng(11)
+    G = len(fast.packed.groups.radius)
+    margins = [(np.zeros(0), np.zeros(0)), (np.full(G, 0.002), np.full(G, 0.001))]
+    seen: dict[bool, int] = {True: 0, False: 0}
+    paths = 0
+    while paths < 30:
+        q0 = w.robot.sample_uniform(rng, 1)[0]
+        v = rng.normal(size=w.robot.dof)
+        v *= 0.05 / np.linalg.norm(v)
+        steps = q0 + np.arange(1, 40)[:, None] * v
+        ok = fast.valid(steps)
+        if not fast.is_valid(q0) or ok.all():
+            continue
+        k = int(np.argmin(ok))
+        lo, hi = (q0 if k == 0 else steps[k - 1]), steps[k]
+        for _ in range(12):              # bisect to just short of contact
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if fast.is_valid(mid) else (lo, mid)
+        side = rng.normal(size=w.robot.dof)
+        side -= side @ v / (v @ v) * v   # along the surface, roughly
+        P = lo + np.linspace(0.0, 1.0, 6)[:, None] * (0.08 * side / np.linalg.norm(side))
+        paths += 1
+        for pad, grow in margins:
+            packed = fast.packed if len(pad) == 0 else dense_path.with_margin(
+                fast.packed, pad, grow)
+            v_all = ~validity.valid_batch(densify(P, 100), packed)
+            ref = int(np.flatnonzero(v_all)[0]) if v_all.any() else -1
+            got = dense_path.first_dense_collision(P, 100, 0, pad, grow, fast.packed)
+            assert got == ref, (paths, len(pad))
+            seen[ref < 0] += 1
+    assert seen[True] >= 5 and seen[False] >= 5, seen
