@@ -374,3 +374,30 @@ def test_dense_path_check_near_contact_equals_every_configuration(world_of, scen
             assert got == ref, (paths, len(pad))
             seen[ref < 0] += 1
     assert seen[True] >= 5 and seen[False] >= 5, seen
+
+
+def test_moving_obstacles_keeps_compiled_entries_and_answers_with_the_new_pose(world_of):
+    """Changing the dynamic obstacles repacks them without typing the packed world again
+    (the compiled entry points are kept), and the kept entries read the new obstacles."""
+    w = world_of("tabletop_pole")
+    fast = w.fast
+    Q = w.robot.sample_uniform(np.random.default_rng(2), 200)
+    q = Q[fast.valid(Q)][0]
+    T = np.eye(4)
+    T[:3, 3] = w.robot.compute_ee_pose(q)[:3, 3]
+    far = np.eye(4)
+    far[:3, 3] = (5.0, 5.0, 5.0)
+    fast.add_obstacle("probe", Shape("sphere", (0.05,)), T)
+    try:
+        assert not fast.is_valid(q)
+        kept = dict(fast._entries)
+        assert kept
+        fast.move_obstacle("probe", far)
+        assert fast.is_valid(q)
+        fast.set_obstacles({"probe": (Shape("sphere", (0.05,)), T),
+                            "other": (Shape("box", (0.1, 0.1, 0.1)), far)})
+        assert not fast.is_valid(q)
+        assert fast._entries == kept
+    finally:
+        fast.set_obstacles({})
+    assert fast.is_valid(q)
