@@ -199,6 +199,17 @@ class FastChecker:
         """Collision-free flag for each configuration; Q (N, K) → (N,)."""
         return self.run_kernel(validity.valid_batch, self._as_batch(Q))
 
+    def valid_in(self, packed: PackedWorld, Q: Array) -> BoolArray:
+        """:meth:`valid` in ``packed``: this checker's packed world as it was with other
+        obstacles (an earlier :attr:`packed`), without changing this checker — for checks
+        that alternate between a few obstacle sets (the executive's time windows)."""
+        Q = self._as_batch(Q)
+        if _layout(packed) != _layout(self.packed):
+            return validity.valid_batch(Q, packed)
+        key = (validity.valid_batch, (Q.dtype, Q.ndim, Q.flags.c_contiguous, Q.flags.writeable))
+        entry = self._entries.get(key)
+        return entry(Q, packed) if entry is not None else validity.valid_batch(Q, packed)
+
     def is_valid(self, q: Array) -> bool:
         """Whether one configuration (K,) is collision-free."""
         return bool(self.valid(q)[0])

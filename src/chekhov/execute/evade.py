@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from chekhov.collision.packed import PackedWorld
 from chekhov.execute.motion import Bounds, Motion, State, brake_along, ruckig_piece, stop_time
 from chekhov.execute.obstacles import (
     Obstacles,
@@ -29,6 +30,8 @@ Array = NDArray[np.float64]
 
 DODGE_CANDIDATES = 64
 """Random dodge targets tried besides the directed ones."""
+DODGE_CHUNK = 16
+"""Dodge targets checked at a time (nearest first) before looking further."""
 DODGE_RAD = 0.7
 """rad, the largest joint offset of a dodge's target."""
 DODGE_STEPS_M = (0.12, 0.25, 0.4)
@@ -68,50 +71,64 @@ class Evader:
         self.limits, self.bounds = limits, bounds
         self.rng = np.random.default_rng(seed)
 
+    def windows(self, t0: float, restore: Obstacles, margin_m: float | None = None
+                ) -> list[PackedWorld]:
+        """The fast checker's packed world holding each :data:`WINDOW_S` window's predicted
+        sweep from t0 (s) over the horizon (inflated by ``margin_m``, m; the settings' by
+        default), for :meth:`safe_in_time`. The fast checker gets ``restore`` back after."""
+        c, fast = self.settings, self.world.fast
+        margin = c.margin_m if margin_m is None else margin_m
+        packs = []
+        try:
+            for k in range(max(1, math.ceil(c.horizon_s / WINDOW_S))):
+                fast.set_obstacles(predicted_obstacles(self.tracks, t0 + k * WINDOW_S,
+                                                       WINDOW_S, margin))
+                packs.append(fast.packed)
+        finally:
+            fast.set_obstacles(restore)
+        return packs
+
     def safe_in_time(self, motions: list[Motion], t0: float, restore: Obstacles,
-                     margin_m: float | None = None) -> NDArray[np.bool_]:
+                     margin_m: float | None = None, *,
+                     windows: list[PackedWorld] | None = None) -> NDArray[np.bool_]:
         """Which ``motions`` (all starting at t0, s) are within the limits and free of the
         obstacles' predicted motion, window by window: over each :data:`WINDOW_S` of the
         horizon the fast checker (conservative) holds the sweep of that window only
-        (inflated by ``margin_m``, m; the settings' by default), and the motions'
-        configurations of that window are checked against it; the last window's sweep also
-        holds for the rest of each motion. The fast checker gets ``restore`` back after."""
-        c = self.settings
-        margin = c.margin_m if margin_m is None else margin_m
-        n_win = max(1, math.ceil(c.horizon_s / WINDOW_S))
+        (:meth:`windows`, made here unless given), and the motions' configurations of that
+        window are checked against it; the last window's sweep also holds for the rest of
+        each motion."""
+        packs = windows if windows is not None else self.windows(t0, restore, margin_m)
+        dt, fast, robot = self.settings.check_dt_s, self.world.fast, self.world.robot
         ok = np.ones(len(motions), dtype=bool)
-        fast = self.world.fast
-        try:
-            for k in range(n_win):
-                if not ok.any():
-                    break
-                a, b = t0 + k * WINDOW_S, t0 + (k + 1) * WINDOW_S
-                fast.set_obstacles(predicted_obstacles(self.tracks, a, WINDOW_S, margin))
-                last = k == n_win - 1
-                for i, m in enumerate(motions):
-                    if ok[i]:
-                        _, Q = m.positions(a, max(b, m.t_end) if last else b, c.check_dt_s)
-                        ok[i] = bool(self.world.robot.within_limits(Q).all()
-                                     and fast.valid(Q).all())
-        finally:
-            fast.set_obstacles(restore)
+        for k, packed in enumerate(packs):
+            a, b = t0 + k * WINDOW_S, t0 + (k + 1) * WINDOW_S
+            last = k == len(packs) - 1
+            for i, m in enumerate(motions):
+                if ok[i]:
+                    _, Q = m.positions(a, max(b, m.t_end) if last else b, dt)
+                    ok[i] = bool(robot.within_limits(Q).all() and fast.valid_in(packed, Q).all())
         return ok
 
     def dodge(self, now: State, t0: float, restore: Obstacles) -> Motion | None:
         """A Ruckig move from ``now`` at clock time t0 (s) to the nearest of the dodge targets
         (:meth:`targets`) that is safe in time (:meth:`safe_in_time`) with the margin, else
-        with none (an arm already inside the margin gets out); None when none is."""
+        with none (an arm already inside the margin gets out); None when none is. Targets
+        are tried nearest first, :data:`DODGE_CHUNK` at a time, so the search ends at the
+        first chunk holding a safe one (the answer is the same as trying all)."""
         z = np.zeros_like(now.q)
-        moves = []
-        for q_r in self.targets(now.q, t0):
-            piece = ruckig_piece(now, State(q_r, z, z), t0, self.limits, "dodge",
-                                 self.bounds)
-            if piece is not None:
-                moves.append(Motion((piece,)))
+        targets = self.targets(now.q, t0)
+        made: list[Motion | None] = []
         for margin in (None, 0.0):
-            safe = self.safe_in_time(moves, t0, restore, margin)
-            if safe.any():
-                return moves[int(np.argmax(safe))]
+            packs = self.windows(t0, restore, margin)
+            for c0 in range(0, len(targets), DODGE_CHUNK):
+                for q_r in targets[len(made):c0 + DODGE_CHUNK]:
+                    piece = ruckig_piece(now, State(q_r, z, z), t0, self.limits, "dodge",
+                                         self.bounds)
+                    made.append(None if piece is None else Motion((piece,)))
+                moves = [m for m in made[c0:c0 + DODGE_CHUNK] if m is not None]
+                safe = self.safe_in_time(moves, t0, restore, windows=packs)
+                if safe.any():
+                    return moves[int(np.argmax(safe))]
         return None
 
     def hold_short(self, motion: Motion, t0: float, t_hit: float,
