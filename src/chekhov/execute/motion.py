@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 from ruckig import InputParameter, Result, Ruckig, Trajectory
 
+from chekhov.execute.ruckig_batch import batch_sampler
 from chekhov.timing import Limits
 from chekhov.trajectory import JointTrajectory
 
@@ -258,7 +259,7 @@ def ruckig_piece(start: State, goal: State, t0: float, limits: Limits, kind: str
     def sample(t: float) -> State:
         q, qd, qdd = traj.at_time(min(max(t, 0.0), traj.duration))
         return State(np.asarray(q), np.asarray(qd), np.asarray(qdd))
-    return Piece(t0, t0 + traj.duration, sample, kind)
+    return Piece(t0, t0 + traj.duration, sample, kind, batch_sampler(traj))
 
 
 def stop_from(start: State, t0: float, limits: Limits, bounds: Bounds | None = None
@@ -282,7 +283,7 @@ def stop_from(start: State, t0: float, limits: Limits, bounds: Bounds | None = N
     def sample(t: float) -> State:
         q, qd, qdd = traj.at_time(min(max(t, 0.0), traj.duration))
         return State(np.asarray(q), np.asarray(qd), np.asarray(qdd))
-    return Motion((Piece(t0, t0 + traj.duration, sample, "brake"),))
+    return Motion((Piece(t0, t0 + traj.duration, sample, "brake", batch_sampler(traj)),))
 
 
 def _velocity_stop(start: State, limits: Limits, jerk_scale: float) -> Trajectory:
