@@ -19,7 +19,7 @@ before. Units: rad, m.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -29,9 +29,6 @@ from chekhov.collision.codes import NO_GEOMETRY, NONE
 from chekhov.collision.kernels import geometry_gap
 from chekhov.robot.chain_kinematics import KinematicChain, chain_fk
 from chekhov.robot.robot import Robot
-
-if TYPE_CHECKING:
-    from chekhov.collision.packed import GroupGeometry, Groups
 
 Array = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -87,8 +84,8 @@ def table_gap(q, i, pair, joint, lo, inv_w, gap):  # pragma: no cover - compiled
     return gap[t, int(x), int(y)] * QUANTUM_M
 
 
-def robot_self_tables(robot: Robot, chain: KinematicChain, groups: Groups,
-                      geometry: GroupGeometry, key: bytes) -> SelfTables:
+def robot_self_tables(robot: Robot, chain: KinematicChain, groups: Any, geometry: Any,
+                      key: bytes) -> SelfTables:
     """:func:`build_self_tables` for ``robot``, kept in ``robot.caches`` under ``key`` (the
     sphere model's bytes: checkers of one robot and cover share them; 0.1-0.5 s to build)."""
     cache = robot.caches.setdefault("self_tables", {})
@@ -108,9 +105,10 @@ def _ancestors(parent: IntArray, j: int) -> set[int]:
     return out
 
 
-def build_self_tables(chain: KinematicChain, lower: Array, upper: Array, groups: Groups,
-                      geometry: GroupGeometry) -> SelfTables:
-    """Tables for the self pairs of ``groups`` (``packed.Groups``) whose relative pose depends
+def build_self_tables(chain: KinematicChain, lower: Array, upper: Array, groups: Any,
+                      geometry: Any) -> SelfTables:
+    """Tables for the self pairs of ``groups`` (a ``packed.Groups``; typed Any here, as
+    ``packed`` imports this module) whose relative pose depends
     on one or two joints with finite limits (``lower``, ``upper``: (K,) rad), both with
     covered geometry (``packed.GroupGeometry``)."""
     parent = chain.parent
