@@ -288,23 +288,19 @@ def _walk(P0, P1, n, m_first, m_last, check_ends, world, work, ww
                     break
             if d <= 0.0 and gk[g] != NO_GEOMETRY:
                 # spheres touching: the covered geometry's gap to what is near, past its pad
-                d = gpad[g] + GAP_LOOK * sphere_step[g]
                 place_geometry(Rc, pc, gj, gR, gp, g, Rw[0], pw[0])
-                for src in range(3):      # static obstacles, dynamic ones, fixed parts
-                    if d <= gpad[g] or (src == 2 and gfix[g] < 0):
-                        break
-                    if src == 0:
-                        d = _obstacle_gap(g, gwc[g], gr[g], d, sk, sR, sp, ss, sk, no_v, no_vs,
-                                          sp, all_static, gk, gsize, pstart, vstart, hv, hcen,
-                                          Rw[0], pw[0], cw[0])
-                    elif src == 1:
-                        d = _obstacle_gap(g, gwc[g], gr[g], d, dk, dR, dp, ds, dk, no_v, no_vs,
-                                          dp, all_dynamic, gk, gsize, pstart, vstart, hv, hcen,
-                                          Rw[0], pw[0], cw[0])
-                    else:
-                        d = _obstacle_gap(g, gwc[g], gr[g], d, fk, fR, fp, fs, fck, fV, fvs,
-                                          fcen, fallow[g], gk, gsize, pstart, vstart, hv, hcen,
-                                          Rw[0], pw[0], cw[0])
+                # static obstacles, then dynamic ones, then fixed parts, while none is near
+                d = _obstacle_gap(g, gwc[g], gr[g], gpad[g] + GAP_LOOK * sphere_step[g], sk,
+                                  sR, sp, ss, sk, no_v, no_vs, sp, all_static, gk, gsize,
+                                  pstart, vstart, hv, hcen, Rw[0], pw[0], cw[0])
+                if d > gpad[g] and dk.shape[0] > 0:
+                    d = _obstacle_gap(g, gwc[g], gr[g], d, dk, dR, dp, ds, dk, no_v, no_vs,
+                                      dp, all_dynamic, gk, gsize, pstart, vstart, hv, hcen,
+                                      Rw[0], pw[0], cw[0])
+                if d > gpad[g] and gfix[g] >= 0:
+                    d = _obstacle_gap(g, gwc[g], gr[g], d, fk, fR, fp, fs, fck, fV, fvs, fcen,
+                                      fallow[g], gk, gsize, pstart, vstart, hv, hcen, Rw[0],
+                                      pw[0], cw[0])
                 d -= gpad[g]
             if d > 0.0:
                 until[g] = m + int(d / sphere_step[g])

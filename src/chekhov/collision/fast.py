@@ -176,17 +176,21 @@ class FastChecker:
         types of ``args`` (arrays: dtype, dimensions, contiguity, writability; others: their
         Python type), and forgotten when the packed world's obstacle arrays change type
         (``_pack_env``)."""
+        return self._run_in(self.packed, kernel, args)
+
+    def _run_in(self, packed: PackedWorld, kernel: Any, args: tuple[Any, ...]) -> Any:
+        """kernel(*args, packed) for a ``packed`` of :attr:`packed`'s numba type."""
         key = (kernel, *[(a.dtype, a.ndim, a.flags.c_contiguous, a.flags.writeable)
                          if isinstance(a, np.ndarray) else type(a) for a in args])
         entry = self._entries.get(key)
         if entry is None:
-            full = (*args, self.packed)
+            full = (*args, packed)
             out = kernel(*full)
             compiled = kernel.overloads.get(tuple(typeof(a) for a in full))
             if compiled is not None:
                 self._entries[key] = compiled.entry_point
             return out
-        return entry(*args, self.packed)
+        return entry(*args, packed)
 
     def _as_batch(self, Q: Array) -> Array:
         Q = np.ascontiguousarray(np.atleast_2d(np.asarray(Q, dtype=float)))
@@ -204,11 +208,9 @@ class FastChecker:
         obstacles (an earlier :attr:`packed`), without changing this checker — for checks
         that alternate between a few obstacle sets (the executive's time windows)."""
         Q = self._as_batch(Q)
-        if _layout(packed) != _layout(self.packed):
+        if _layout(packed) != _layout(self.packed):   # another numba type: plain dispatch
             return validity.valid_batch(Q, packed)
-        key = (validity.valid_batch, (Q.dtype, Q.ndim, Q.flags.c_contiguous, Q.flags.writeable))
-        entry = self._entries.get(key)
-        return entry(Q, packed) if entry is not None else validity.valid_batch(Q, packed)
+        return self._run_in(packed, validity.valid_batch, (Q,))
 
     def is_valid(self, q: Array) -> bool:
         """Whether one configuration (K,) is collision-free."""

@@ -30,31 +30,9 @@ MAX_ITER = 32
 
 
 @njit(cache=True, nogil=True, inline="always")
-def support_value(kind, R, p, size, V, v0, v1, u):  # pragma: no cover - compiled
-    """h(u) = max over the primitive of x·u, for any direction u (3,)."""
-    h = p[0] * u[0] + p[1] * u[1] + p[2] * u[2]
-    if kind == HULL:
-        l0 = R[0, 0] * u[0] + R[1, 0] * u[1] + R[2, 0] * u[2]
-        l1 = R[0, 1] * u[0] + R[1, 1] * u[1] + R[2, 1] * u[2]
-        l2 = R[0, 2] * u[0] + R[1, 2] * u[1] + R[2, 2] * u[2]
-        best = -np.inf
-        for i in range(v0, v1):
-            best = max(best, V[i, 0] * l0 + V[i, 1] * l1 + V[i, 2] * l2)
-        return h + best
-    if kind == SPHERE:
-        return h + size[0] * np.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
-    if kind == BOX:
-        for i in range(3):
-            h += size[i] * abs(R[0, i] * u[0] + R[1, i] * u[1] + R[2, i] * u[2])
-        return h
-    zu = R[0, 2] * u[0] + R[1, 2] * u[1] + R[2, 2] * u[2]
-    perp2 = max(u[0] * u[0] + u[1] * u[1] + u[2] * u[2] - zu * zu, 0.0)
-    return h + size[1] * abs(zu) + size[0] * np.sqrt(perp2)
-
-
-@njit(cache=True, nogil=True, inline="always")
 def support_point(kind, R, p, size, V, v0, v1, u, sign, out):  # pragma: no cover - compiled
-    """out = a point x of the primitive maximising x·(sign·u)."""
+    """out = a point x of the primitive maximising x·(sign·u), for any direction u (3,)
+    (its support value h(sign·u) = x·(sign·u))."""
     for a in range(3):
         out[a] = p[a]
     if kind == HULL:
@@ -191,7 +169,7 @@ def convex_collide(ka, Ra, pa, sa, Va, a0, a1, ca, kb, Rb, pb, sb, Vb, b0, b1, c
                    ):  # pragma: no cover - compiled
     """False only when convex shapes A and B are proven more than ``pad`` (m) apart.
 
-    Each shape is (kind, R, p, size, V, v0, v1) as in :func:`support_value`, and a point of it
+    Each shape is (kind, R, p, size, V, v0, v1) as in :func:`support_point`, and a point of it
     (world, m) to start from: ca, cb (e.g. its centre)."""
     return convex_gap(ka, Ra, pa, sa, Va, a0, a1, ca, kb, Rb, pb, sb, Vb, b0, b1, cb,
                       pad) <= pad + 1e-9
