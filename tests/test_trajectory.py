@@ -105,6 +105,23 @@ def test_a_reversal_rests_at_the_corner_and_a_straight_corner_is_passed():
     assert np.linalg.norm(qd) > 0.5                     # passes it at speed
 
 
+def test_an_evenly_spaced_gentle_bend_is_not_slowed_down():
+    # TrajOpt's answers: 30 evenly spaced waypoints, corners turning by 1e-6..1e-2 rad, so each
+    # is rounded over half of both segments and the lines between the arcs are 1e-7 rad long.
+    # Their grid points, microns apart, made stages of ~1e-7 s whose rounding the interpolant
+    # read as accelerations 100-200 000 times the limit, and the whole motion was slowed 13-467
+    # times (a 1.4 rad path took 120 s). Checked against ruckig's timing, which rests at every
+    # waypoint and so can only be slower than the blended one.
+    t = np.linspace(0.0, 1.0, 30)[:, None]
+    for seed in range(5):
+        rng = np.random.default_rng(seed)
+        P = rng.uniform(-1, 1, 7) + t * rng.normal(size=7) + 0.05 * t ** 6 * rng.normal(size=7)
+        blended = time_parameterize(P, NAMES, LIMITS).trajectory
+        resting = time_parameterize(P, NAMES, LIMITS, TimingConfig(method="ruckig")).trajectory
+        assert blended.duration < resting.duration, (seed, blended.duration, resting.duration)
+        _assert_within_limits(blended, rng)
+
+
 def test_the_blend_is_a_unit_speed_path_near_each_corner():
     P = _random_path(np.random.default_rng(4), 6)
     path = BlendedPolyline(P, 0.05)
