@@ -99,14 +99,21 @@ class Evader:
         each motion."""
         packs = windows if windows is not None else self.windows(t0, restore, margin_m)
         dt, fast, robot = self.settings.check_dt_s, self.world.fast, self.world.robot
-        ok = np.ones(len(motions), dtype=bool)
+        # each motion sampled once, every dt from t0 to past the horizon; each window's
+        # configurations of every motion still in the running checked in one call
+        t_horizon = t0 + len(packs) * WINDOW_S
+        samples = [m.positions(t0, max(t_horizon, m.t_end), dt) for m in motions]
+        ok = np.array([bool(robot.within_limits(Q).all()) for _, Q in samples], dtype=bool)
         for k, packed in enumerate(packs):
-            a, b = t0 + k * WINDOW_S, t0 + (k + 1) * WINDOW_S
+            a, b = t0 + k * WINDOW_S - 1e-9, t0 + (k + 1) * WINDOW_S + 1e-9
             last = k == len(packs) - 1
-            for i, m in enumerate(motions):
-                if ok[i]:
-                    _, Q = m.positions(a, max(b, m.t_end) if last else b, dt)
-                    ok[i] = bool(robot.within_limits(Q).all() and fast.valid_in(packed, Q).all())
+            rows = [(i, Q[(ts >= a) & ((ts <= b) | last)])
+                    for i, (ts, Q) in enumerate(samples) if ok[i]]
+            if not rows:
+                break
+            free = fast.valid_in(packed, np.vstack([Q for _, Q in rows]))
+            owner = np.repeat([i for i, _ in rows], [len(Q) for _, Q in rows])
+            ok[owner[~free]] = False
         return ok
 
     def dodge(self, now: State, t0: float, restore: Obstacles) -> Motion | None:
