@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from chekhov.cli import main
+from chekhov.collision.path_check import exact_path_decision
 from chekhov.execute.benchmark import ReactConfig, executive_planner, run_one
+from chekhov.execute.evade import Evader, EvadeSettings
 from chekhov.execute.evaluate import TrueWorld, evaluate_episode, limit_violations
 from chekhov.execute.motion import (
     Bounds,
@@ -19,7 +21,7 @@ from chekhov.execute.motion import (
     stop_from,
     trajectory_motion,
 )
-from chekhov.execute.obstacles import MovingObstacle
+from chekhov.execute.obstacles import MovingObstacle, ObstacleTracks
 from chekhov.execute.script import EpisodeScript, GoalChange, Kick, make_script, start_and_goal
 from chekhov.execute.simulate import EpisodeRecord
 from chekhov.robot.goal import Goal
@@ -146,6 +148,41 @@ def test_a_stop_after_a_kick_stays_within_the_position_limits(world, limits):
     assert _fd_ok(ts, Q, V, limits)
 
 
+
+
+def test_a_moving_arm_whose_stop_hits_the_scene_escapes_exactly_free(world, limits):
+    """Moving arms (random free configurations, 0.5-1× the slowest joint's limit) whose stop
+    runs into the scene by the exact checker: within 400 states, one whose escape is free by
+    the exact decision at 1 ms steps and within the limits (finite differences)."""
+    robot = world.robot
+    bounds = Bounds(robot.lower, robot.upper)
+    ex = CONFIG.executor
+    evader = Evader(world, ObstacleTracks(), EvadeSettings(ex.horizon_s, ex.margin_m,
+                                                           ex.check_dt_s), limits, bounds)
+    world.fast.set_obstacles({})
+    world.exact.set_obstacles({})
+    rng = np.random.default_rng(0)
+    rescued = 0
+    for _ in range(400):
+        q = robot.sample_uniform(rng, 1)[0]
+        d = rng.normal(size=robot.dof)
+        qd = d / np.abs(d).max() * rng.uniform(0.5, 1.0) * limits.velocity.min()
+        start = State(q, qd, np.zeros_like(q))
+        if not world.fast.is_valid(q):
+            continue
+        stop = stop_from(start, 0.0, limits, bounds)
+        _, Q, _ = _sampled(stop, 0.0, stop.t_end)
+        if exact_path_decision(world.fast, world.exact, Q, 2).valid:
+            continue
+        for move in evader.escapes(start, 0.0, {}):
+            ts, Q, V = _sampled(move, 0.0, move.t_end + 0.01)
+            if exact_path_decision(world.fast, world.exact, Q, 2).valid:
+                assert robot.within_limits(Q, tol=1e-6).all() and _fd_ok(ts, Q, V, limits)
+                rescued += 1
+                break
+        if rescued:
+            break
+    assert rescued == 1
 def _script(world, index, **kw):
     q0, goal = start_and_goal(world, 0, index)
     return EpisodeScript(index, q0, goal, "", **kw)

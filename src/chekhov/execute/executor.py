@@ -233,15 +233,28 @@ class Executor:
                 self._need = self._need or "retry"
             return
         self._cancel()
-        move = self.evader.dodge(start, t, self._seen) if self.tracks.tracks else None
-        if move is not None:        # a stop could leave the arm in an obstacle's way
-            self.counters.dodges += 1
-        else:
-            self.counters.safe_stops += 1
-            move = stop_from(start, t, self.limits, self.bounds)
-        self._install(move)
+        self._install(self._after_kick(start, t))
         self._react(t + self.config.control_dt_s)
         self._need = "kick"
+
+    def _after_kick(self, start: State, t: float) -> Motion:
+        """A kicked arm that cannot rejoin: a dodge (a stop could leave it in an obstacle's
+        way), else its stop when that is safe in time, else the first exactly free escape
+        (:meth:`Evader.escapes <chekhov.execute.evade.Evader.escapes>`), else the stop."""
+        ev = self.evader
+        move = ev.dodge(start, t, self._seen) if self.tracks.tracks else None
+        if move is not None:
+            self.counters.dodges += 1
+            return move
+        stop = stop_from(start, t, self.limits, self.bounds)
+        if not ev.safe_in_time([stop], t, self._seen, 0.0).all():
+            move = next((m for m in ev.escapes(start, t, self._seen) if self._free(m, t)),
+                        None)
+            if move is not None:
+                self.counters.dodges += 1
+                return move
+        self.counters.safe_stops += 1
+        return stop
 
     def _rejoin(self, start: State, t: float) -> Motion | None:
         """A Ruckig join from the kicked ``start`` back onto the motion (``rejoin_s`` ahead,
