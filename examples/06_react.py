@@ -50,6 +50,7 @@ script = make_script(world, 0, index, plain.t_reached, ee, plain.q)
 
 # Your own loop: the robot tracks each command; here it is simulated, tick by tick.
 executor = Executor(world, InlineWorker(world, planner, config.timing), script.goal, config)
+executor.warmup()   # the kernels a reaction uses, loaded before the first tick
 dt, period, latency = config.control_dt_s, 1 / 30, 0.04
 q, qd = script.q_start.copy(), np.zeros_like(script.q_start)
 rows, frame_no = [], 0

@@ -474,3 +474,15 @@ def test_a_thread_worker_closes_cleanly(world, planner):
                    for t in threading.enumerate())
     _time.sleep(0.05)
     assert worker.poll(10.0) is None
+
+
+def test_warmup_loads_the_reaction_kernels_and_changes_nothing(world, planner):
+    from chekhov.execute.executor import Executor
+    from chekhov.execute.worker import InlineWorker
+    script = _script(world, 0)
+    ex = Executor(world, InlineWorker(world, planner, CONFIG.executor.timing), script.goal,
+                  CONFIG.executor)
+    names = list(world.fast.obstacle_names)
+    assert ex.warmup() >= 0.0
+    assert ex.motion is None and not ex.reactions and ex.counters.safe_stops == 0
+    assert world.fast.obstacle_names == names

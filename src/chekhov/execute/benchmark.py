@@ -87,6 +87,7 @@ def run_one(world: World, planner: Planner, script: EpisodeScript, deadline_s: f
     """Run one script with a fresh executive."""
     worker = InlineWorker(world, planner, config.executor.timing)
     executor = Executor(world, worker, script.goal, config.executor)
+    executor.warmup()
     return run_episode(world, executor, script, deadline_s, config.sim)
 
 

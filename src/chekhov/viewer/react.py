@@ -292,6 +292,7 @@ class LiveExecutive:
         rc = self.config.react
         dt = rc.executor.control_dt_s
         self.executor = Executor(self.world, self.worker, script.goal, rc.executor)
+        self.executor.warmup()   # real time: the first reaction must not stall a tick
         episode = LiveEpisode(self.world, self.executor, script, deadline_s=deadline_s,
                               sim=rc.sim)
         t0, k = self.clock(), 0
