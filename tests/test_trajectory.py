@@ -91,6 +91,16 @@ def test_property_limits_ends_and_polyline(seed, n, method, deviation):
     _assert_near_polyline(timed, P, config)
 
 
+@pytest.mark.parametrize("length", [1e-6, 5e-5, 1e-4, 3e-4])
+def test_a_path_shorter_than_the_grid_merge_step_is_timed_by_toppra(length):
+    P = np.zeros((3, 7))
+    P[1, 0], P[2, 0], P[2, 1] = length / 2, length, length / 10
+    timed = time_parameterize(P, NAMES, LIMITS)
+    assert timed.method == "toppra"
+    assert np.allclose(timed.trajectory.positions[[0, -1]], P[[0, -1]], atol=1e-12)
+    _assert_within_limits(timed.trajectory, np.random.default_rng(0))
+
+
 def test_a_reversal_rests_at_the_corner_and_a_straight_corner_is_passed():
     a, b = np.zeros(7), np.full(7, 0.4)
     back = np.array([a, b, a])                          # turns by pi: cannot be rounded

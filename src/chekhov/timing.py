@@ -55,7 +55,8 @@ GRID_STEP_RAD = 0.1
 ARC_STEP_RAD = 0.1
 """rad of turn: the largest step of toppra's grid on an arc."""
 GRID_MIN_STEP_RAD = 1e-4
-"""rad of path length: grid points nearer than this to the previous one are dropped."""
+"""rad of path length: grid points nearer than this (or than half the grid's step, on a short
+path) to the previous one are dropped."""
 GRADED_FROM_RAD = 0.002
 """rad of path length: the first graded grid step from a line's end."""
 
@@ -344,7 +345,12 @@ class BlendedPolyline:
         # an arc's end and the next line's start differ by rounding (~1e-9 rad): kept both,
         # they made a stage of ~1e-8 s whose rounding the interpolant read as a huge
         # acceleration, and within_limits slowed whole trajectories 30-90 times
-        grid = grid[np.concatenate([[True], np.diff(grid) > GRID_MIN_STEP_RAD])]
+        tiny = min(GRID_MIN_STEP_RAD, step / 2)   # a short path keeps its fine grid
+        keep = np.concatenate([[True], np.diff(grid) > tiny])
+        keep[-1] = True                      # both ends, however short the path
+        grid = grid[keep]
+        if len(grid) > 2 and grid[-1] - grid[-2] <= tiny:
+            grid = np.delete(grid, -2)       # an inner point just short of the end
         grid[-1] = self.length               # toppra wants the path's ends exactly
         return grid
 
