@@ -482,7 +482,9 @@ def test_warmup_loads_the_reaction_kernels_and_changes_nothing(world, planner):
     script = _script(world, 0)
     ex = Executor(world, InlineWorker(world, planner, CONFIG.executor.timing), script.goal,
                   CONFIG.executor)
-    names = list(world.fast.obstacle_names)
+    world.fast.set_obstacles({"box": (Shape("box", (0.1, 0.1, 0.1)), np.eye(4))})
+    version = world.fast.obstacles_version
     assert ex.warmup() >= 0.0
     assert ex.motion is None and not ex.reactions and ex.counters.safe_stops == 0
-    assert world.fast.obstacle_names == names
+    assert world.fast.obstacles_version == version and "box" in world.fast.obstacle_names
+    world.fast.set_obstacles({})

@@ -197,13 +197,16 @@ class Executor:
 
     def warmup(self) -> float:
         """Load (on a fresh install: compile, ~0.3 s) the compiled kernels a reaction uses —
-        a stop's sampling and a motion's check against the predicted obstacles — so that the
-        first kick or conflict does not stall a tick. Changes nothing; returns the time (s)."""
+        a stop's sampling and a motion's check against a packed snapshot of the obstacles —
+        so that the first kick or conflict does not stall a tick. Changes nothing (the
+        world's obstacles included); returns the time (s)."""
         t0 = time.perf_counter()
         q = (self.bounds.lower + self.bounds.upper) / 2
         stop = stop_from(State(q, 0.5 * self.limits.velocity, np.zeros_like(q)), 0.0,
                          self.limits, self.bounds)
-        self.evader.safe_in_time([stop], 0.0, self._seen, 0.0)
+        _, Q = stop.positions(0.0, stop.t_end, self.config.check_dt_s)
+        fast = self.world.fast
+        fast.valid_in(fast.packed, Q)
         return time.perf_counter() - t0
 
     @property
