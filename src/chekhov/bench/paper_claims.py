@@ -35,7 +35,7 @@ from typing import Any, NamedTuple
 from chekhov.bench import paper_results as paper
 from chekhov.bench.plots import planner_order
 from chekhov.bench.summary import ROADMAP, PlannerStats, Stats, StatsKey
-from chekhov.execute.executor import ExecutorConfig
+from chekhov.execute.interface import ExecutorConfig
 from chekhov.planners.registry import seed_planner_name
 
 REACTION_BUDGET_S = ExecutorConfig().planning_budget_s

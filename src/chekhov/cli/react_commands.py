@@ -59,7 +59,7 @@ def _check(args: argparse.Namespace) -> None:
 
 def _cmd_react(args: argparse.Namespace) -> int:
     from chekhov.execute.benchmark import ReactConfig, react_scene
-    from chekhov.execute.executor import ExecutorConfig
+    from chekhov.execute.interface import ExecutorConfig
     from chekhov.world import World
 
     _check(args)

@@ -6,7 +6,8 @@ Layer 5: imports planners/ and below; bench/, viewer/ and cli/ import it."""
 
 from chekhov.execute.benchmark import ReactConfig, executive_planner, react_scene
 from chekhov.execute.evaluate import EpisodeCheck, evaluate_episode
-from chekhov.execute.executor import Command, Executor, ExecutorConfig, Observation, Reaction
+from chekhov.execute.executor import Executor
+from chekhov.execute.interface import Command, ExecutorConfig, Observation, Reaction
 from chekhov.execute.motion import Motion, State
 from chekhov.execute.obstacles import MovingObstacle, ObstacleTracks, obstacles_at
 from chekhov.execute.script import EpisodeScript, GoalChange, Kick, make_script, start_and_goal

@@ -21,7 +21,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from chekhov.execute.evaluate import EpisodeCheck, evaluate_episode
-from chekhov.execute.executor import Executor, ExecutorConfig
+from chekhov.execute.executor import Executor
+from chekhov.execute.interface import ExecutorConfig
 from chekhov.execute.script import EpisodeScript, make_script, start_and_goal
 from chekhov.execute.simulate import EpisodeRecord, SimConfig, run_episode
 from chekhov.execute.worker import InlineWorker

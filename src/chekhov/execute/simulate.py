@@ -13,7 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from chekhov.execute.executor import Counters, Executor, Observation, Reaction
+from chekhov.execute.executor import Executor
+from chekhov.execute.interface import Counters, Observation, Reaction
 from chekhov.execute.obstacles import MovingObstacle, obstacles_at
 from chekhov.execute.script import EpisodeScript
 from chekhov.robot.goal import Goal

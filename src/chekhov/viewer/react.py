@@ -29,7 +29,8 @@ from numpy.typing import NDArray
 
 from chekhov.errors import ChekhovError
 from chekhov.execute.benchmark import ReactConfig, executive_planner, run_one
-from chekhov.execute.executor import Command, Executor, Observation, Reaction
+from chekhov.execute.executor import Executor
+from chekhov.execute.interface import Command, Observation, Reaction
 from chekhov.execute.motion import Motion
 from chekhov.execute.obstacles import MovingObstacle, Obstacles, obstacles_at
 from chekhov.execute.script import EpisodeScript, make_script, start_and_goal

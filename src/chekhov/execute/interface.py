@@ -1,0 +1,109 @@
+"""What the executive takes and gives, tick by tick: its configuration
+(:class:`ExecutorConfig`), each tick's :class:`Observation` and :class:`Command`, the
+:class:`Reaction` records of disturbances and the :class:`Counters` of what it did (see
+:class:`~chekhov.execute.executor.Executor`). Units: s, rad, m."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from chekhov.execute.obstacles import Obstacles
+from chekhov.robot.goal import Goal
+from chekhov.timing import TimingConfig
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class ExecutorConfig:
+    """How the executive reacts.
+
+    Attributes:
+        control_dt_s: s, the control period (100 Hz).
+        planning_budget_s: s, a replan's time limit; it plans from the state expected this
+            long (rounded up to ticks) after the request, and its answer is joined on at the
+            first tick after it comes.
+        max_budget_s: s, the budget after failed replans (doubling each time).
+        horizon_s: s, how far ahead the obstacles' motion is predicted.
+        margin_m: m, how much the obstacles are inflated when planning and monitoring.
+        kick_tolerance_rad: rad, a measured position this far from the command is a kick.
+        check_dt_s: s, the time step of the checks along a motion.
+        rejoin_s: s, how far ahead on its motion a kicked arm rejoins it.
+        join_offsets_s: s, where on a new plan's trajectory the join aims, tried in order.
+        timing: how plans are timed: Ruckig, at rest at each waypoint and exactly on the
+            certified polyline (2 ms for a 3-5 waypoint path, durations within ~10% of
+            toppra's with rounded corners, which takes 10-15 ms and then an exact re-check).
+    """
+
+    control_dt_s: float = 0.01
+    planning_budget_s: float = 0.05
+    max_budget_s: float = 0.64
+    horizon_s: float = 0.6
+    margin_m: float = 0.04
+    kick_tolerance_rad: float = 1e-3
+    check_dt_s: float = 0.01
+    rejoin_s: float = 0.25
+    join_offsets_s: tuple[float, ...] = (0.15, 0.3, 0.0)
+    timing: TimingConfig = field(default_factory=lambda: TimingConfig(method="ruckig"))
+
+
+@dataclass(frozen=True, eq=False)
+class Observation:
+    """What the executive gets each tick.
+
+    Attributes:
+        t: s, the clock. q: (K,) rad and qd: (K,) rad/s, the measured state.
+        obstacles: a sensor frame, on the ticks one arrives (name → (shape, T_world_obj)).
+        stamp: s, when that frame was taken (earlier than t by the sensor's latency).
+        goal: a new goal, on the tick it is given.
+    """
+
+    t: float
+    q: Array
+    qd: Array
+    obstacles: Obstacles | None = None
+    stamp: float | None = None
+    goal: Goal | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class Command:
+    """The state to be in at time ``t`` (s): q (K,) rad, qd rad/s, qdd rad/s²; ``mode``: what
+    the motion is doing ("plan", "join", "brake", "rest")."""
+
+    t: float
+    q: Array
+    qd: Array
+    qdd: Array
+    mode: str
+
+
+@dataclass
+class Reaction:
+    """A disturbance and the answer to it: ``kind`` ("obstacle", "goal", "kick"), when it was
+    observed, when the first motion answering it began (``t_reacted``: a brake, a dodge, a
+    rejoin or a new plan) and when a motion to the goal that answers it began
+    (``t_resolved``: a rejoin or a new plan), s; None while none has."""
+
+    kind: str
+    t_observed: float
+    t_reacted: float | None = None
+    t_resolved: float | None = None
+
+
+@dataclass
+class Counters:
+    replans: int = 0
+    failed_plans: int = 0
+    late_plans: int = 0
+    rejoins: int = 0
+    safe_stops: int = 0
+    dodges: int = 0
+    holds: int = 0
+    planning_wall_s: list[float] = field(default_factory=list)
+    failures: list[str] = field(default_factory=list)
+    step_wall_s: list[float] = field(default_factory=list)
+    """s, each step's own compute time (an inline worker's planning left out)."""
