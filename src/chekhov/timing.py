@@ -342,9 +342,10 @@ class BlendedPolyline:
                 g = GRADED_FROM_RAD * 2.0 ** k                   # all <= (b - a) / 2
                 parts.append(np.concatenate([a + g, b - g]))
         grid = np.unique(np.concatenate(parts))
-        # an arc's end and the next line's start differ by rounding (~1e-9 rad): kept both,
-        # they made a stage of ~1e-8 s whose rounding the interpolant read as a huge
-        # acceleration, and within_limits slowed whole trajectories 30-90 times
+        # corners that turn by 1e-6..1e-2 rad between even segments leave lines of 1e-7..1e-5
+        # rad between their arcs: grid points that close made stages of ~1e-7 s whose
+        # rounding the interpolant read as huge accelerations, and within_limits slowed whole
+        # trajectories 13-467 times
         tiny = min(GRID_MIN_STEP_RAD, step / 2)   # a short path keeps its fine grid
         keep = np.concatenate([[True], np.diff(grid) > tiny])
         keep[-1] = True                      # both ends, however short the path
