@@ -14,7 +14,7 @@ Layers (docs/architecture.md), lowest first; a module may import from its own la
 
     0  top-level modules (errors, atomic, paths, trajectory, timing, …), robot/, scene/
     1  collision/
-    2  world.py, cases.py
+    2  world.py, cases.py (and its private modules, _case_*.py)
     3  trajopt/, roadmap/
     4  planners/
     5  execute/ (the reactive executive)
@@ -34,7 +34,8 @@ from typing import NamedTuple
 SRC = Path(__file__).resolve().parents[1] / "src"
 PACKAGE = "chekhov"
 # first component under chekhov (a subpackage or a top-level module) -> layer
-LAYERS = {"collision": 1, "world": 2, "cases": 2, "trajopt": 3, "roadmap": 3, "planners": 4,
+LAYERS = {"collision": 1, "world": 2, "cases": 2, "_case_file": 2, "_case_sampling": 2,
+          "_case_tasks": 2, "_case_generate": 2, "trajopt": 3, "roadmap": 3, "planners": 4,
           "execute": 5, "bench": 6, "viewer": 6, "cli": 7}
 # same layer, yet neither may import the other
 SIDEWAYS = {("bench", "viewer"), ("viewer", "bench")}
