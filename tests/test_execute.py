@@ -341,6 +341,57 @@ def test_a_resting_arm_dodges_a_forearm_coming_at_it(world, limits):
     assert not any(truth.collides(q, float(t)) for q, t in zip(Q, ts, strict=True))
 
 
+def test_the_dodge_is_the_nearest_target_whose_move_is_safe_sample_by_sample(world, limits):
+    """The dodge search drops targets early (rest in the last window's sweep, coarse samples
+    first, chunks): its answer must still be the nearest target whose Ruckig move is within
+    the limits and free of its window's sweep at every check step, each sample checked on
+    its own."""
+    from chekhov.execute.evade import WINDOW_S
+    from chekhov.execute.obstacles import obstacles_at
+    q0, _ = start_and_goal(world, 0, 0)
+    elbow = world.robot.compute_joint_placements(q0)[3, :3, 3]
+    d = np.array([-1.0, 0.0, 0.0])
+    ball = MovingObstacle("ball", Shape("sphere", (0.08,)), np.eye(3), elbow - 0.6 * d,
+                          elbow + 0.6 * d, 0.0, 0.5)
+    tracks = ObstacleTracks()
+    t0 = 0.5
+    for stamp in (t0 - 1 / 30, t0):
+        tracks.update(obstacles_at((ball,), stamp), stamp)
+    c = CONFIG.executor
+    bounds = Bounds(world.robot.lower, world.robot.upper)
+
+    def evader():
+        return Evader(world, tracks, EvadeSettings(c.horizon_s, c.margin_m, c.check_dt_s),
+                      limits, bounds, seed=3)
+    z = np.zeros_like(q0)
+    now = State(q0, z, z)
+    move = evader().dodge(now, t0, {})
+    reference = evader()
+    targets = reference.targets(q0, t0)
+    packs = reference.windows(t0, {})
+    expected = None
+    for q_r in targets:
+        piece = ruckig_piece(now, State(q_r, z, z), t0, limits, "dodge", bounds)
+        if piece is None:
+            continue
+        t_end = max(t0 + len(packs) * WINDOW_S, piece.t_end)
+        ts = np.append(np.arange(t0, t_end, c.check_dt_s), t_end)
+        safe = True
+        for t in ts:
+            q = piece.sample(min(t, piece.t_end) - t0).q
+            k = min(int((t - t0) / WINDOW_S + 1e-9), len(packs) - 1)
+            inside = world.robot.within_limits(q[None])[0]
+            if not (inside and world.fast.valid_in(packs[k], q[None])[0]):
+                safe = False
+                break
+        if safe:
+            expected = q_r
+            break
+    assert expected is not None and move is not None, (expected, move)
+    assert np.allclose(move.end.q, expected, atol=1e-9)
+    assert float(np.abs(expected - q0).max()) > 0.0     # a dodge that moves
+
+
 def test_an_obstacle_on_the_goal_is_answered_at_once_by_holding_short_of_it(world, planner,
                                                                            limits):
     """A ball appears on the goal while the arm moves there and stays 2 s: no plan can reach

@@ -57,6 +57,8 @@ HOLD_STEP_S = 0.1
 """s, how much earlier each next brake start :meth:`Evader.hold_short` tries is."""
 HOLD_TRIES = 5
 """How many brake starts :meth:`Evader.hold_short` tries."""
+COARSE = 4
+"""Every how many samples of a motion :meth:`Evader.safe_in_time` checks first."""
 ESCAPE_TRIES = 64
 """Random constant accelerations :meth:`Evader.escapes` tries."""
 ESCAPE_S = 0.3
@@ -111,41 +113,59 @@ class Evader:
         window are checked against it; the last window's sweep also holds for the rest of
         each motion."""
         packs = windows if windows is not None else self.windows(t0, restore, margin_m)
-        dt, fast, robot = self.settings.check_dt_s, self.world.fast, self.world.robot
-        # each motion sampled once, every dt from t0 to past the horizon; each window's
-        # configurations of every motion still in the running checked in one call
+        dt, robot = self.settings.check_dt_s, self.world.robot
+        # each motion sampled once, every dt from t0 to past the horizon; every COARSE-th
+        # sample checked first (most candidates collide, and are dropped on fewer checks),
+        # then the rest of those still in the running — each window's configurations of
+        # every such motion in one call
         t_horizon = t0 + len(packs) * WINDOW_S
         samples = [m.positions(t0, max(t_horizon, m.t_end), dt) for m in motions]
         ok = np.array([bool(robot.within_limits(Q).all()) for _, Q in samples], dtype=bool)
+        for coarse in (True, False):
+            picked = [(ts, Q, (np.arange(len(ts)) % COARSE == 0) == coarse)
+                      for ts, Q in samples]
+            self._drop_unsafe(ok, picked, packs, t0)
+        return ok
+
+    def _drop_unsafe(self, ok: NDArray[np.bool_], picked: list[tuple[Array, Array, NDArray[
+            np.bool_]]], packs: list[PackedWorld], t0: float) -> None:
+        """Set ``ok[i]`` False for each motion i still ok whose configurations picked (times
+        (N,) s, positions (N, K) rad, which of them (N,)) collide with their window's sweep
+        (the last window's from its start on)."""
+        fast = self.world.fast
         for k, packed in enumerate(packs):
             a, b = t0 + k * WINDOW_S - 1e-9, t0 + (k + 1) * WINDOW_S + 1e-9
             last = k == len(packs) - 1
-            rows = [(i, Q[(ts >= a) & ((ts <= b) | last)])
-                    for i, (ts, Q) in enumerate(samples) if ok[i]]
+            rows = [(i, Q[pick & (ts >= a) & ((ts <= b) | last)])
+                    for i, (ts, Q, pick) in enumerate(picked) if ok[i]]
             if not rows:
-                break
+                return
             free = fast.valid_in(packed, np.vstack([Q for _, Q in rows]))
             owner = np.repeat([i for i, _ in rows], [len(Q) for _, Q in rows])
             ok[owner[~free]] = False
-        return ok
 
     def dodge(self, now: State, t0: float, restore: Obstacles) -> Motion | None:
         """A Ruckig move from ``now`` at clock time t0 (s) to the nearest of the dodge targets
         (:meth:`targets`) that is safe in time (:meth:`safe_in_time`) with the margin, else
-        with none (an arm already inside the margin gets out); None when none is. Targets
-        are tried nearest first, :data:`DODGE_CHUNK` at a time, so the search ends at the
-        first chunk holding a safe one (the answer is the same as trying all)."""
+        with none (an arm already inside the margin gets out); None when none is. A target
+        where the arm would rest in the last window's sweep is dropped before its move is
+        made (that move cannot be safe); the rest are tried nearest first,
+        :data:`DODGE_CHUNK` at a time, so the search ends at the first chunk holding a safe
+        one (the answer is the same as trying all)."""
         z = np.zeros_like(now.q)
         targets = self.targets(now.q, t0)
-        made: list[Motion | None] = []
+        made: dict[int, Motion | None] = {}
         for margin in (None, 0.0):
             packs = self.windows(t0, restore, margin)
-            for c0 in range(0, len(targets), DODGE_CHUNK):
-                for q_r in targets[len(made):c0 + DODGE_CHUNK]:
-                    piece = ruckig_piece(now, State(q_r, z, z), t0, self.limits, "dodge",
-                                         self.bounds)
-                    made.append(None if piece is None else Motion((piece,)))
-                moves = [m for m in made[c0:c0 + DODGE_CHUNK] if m is not None]
+            live = np.flatnonzero(self.world.fast.valid_in(packs[-1], targets))
+            for c0 in range(0, len(live), DODGE_CHUNK):
+                chunk = live[c0:c0 + DODGE_CHUNK]
+                for i in chunk:
+                    if i not in made:
+                        piece = ruckig_piece(now, State(targets[i], z, z), t0, self.limits,
+                                             "dodge", self.bounds)
+                        made[i] = None if piece is None else Motion((piece,))
+                moves = [m for m in (made[i] for i in chunk) if m is not None]
                 safe = self.safe_in_time(moves, t0, restore, windows=packs)
                 if safe.any():
                     return moves[int(np.argmax(safe))]
