@@ -203,6 +203,37 @@ def test_undisturbed_episode_reaches_the_goal_within_limits(world, planner, limi
     assert rec.counters.replans == 1 and not rec.reactions
 
 
+def test_an_arm_resting_in_the_scene_gets_out_and_reaches_its_goal(world, planner, limits):
+    """A stop after a kick can leave the arm in contact with the scene: no plan starts there
+    and every dodge starts in collision. The executive gets it out (exactly free within
+    Evader.unstick's time, judged at 1 ms steps by the exact checker) and reaches the goal."""
+    from chekhov.execute.evade import UNSTICK_S
+    q0, goal = start_and_goal(world, 0, 0)
+    rng = np.random.default_rng(5)
+    stuck = None
+    for _ in range(400):             # just past the first contact along a random direction
+        d = rng.normal(size=q0.shape)
+        d /= np.linalg.norm(d)
+        hits = [s for s in np.linspace(0.0, 0.8, 161)[1:]
+                if not world.exact.is_valid(q0 + s * d)]
+        q = q0 + (hits[0] + 0.01) * d if hits else None
+        if q is not None and world.robot.within_limits(q[None])[0] and \
+                not world.exact.is_valid(q):
+            stuck = q
+            break
+    assert stuck is not None
+    rec = run_one(world, planner, EpisodeScript(0, stuck, goal, ""), 20.0, CONFIG)
+    assert rec.reached and _meets(world, rec.q[-1], goal)
+    assert rec.counters.dodges >= 1
+    ts = np.arange(0.0, rec.times[-1], 1e-3)
+    Q = np.array([np.interp(ts, rec.times, rec.q[:, j]) for j in range(len(q0))]).T
+    out = next(i for i, q in enumerate(Q) if world.exact.is_valid(q))
+    assert ts[out] <= UNSTICK_S + 2 * DT
+    free = exact_path_decision(world.fast, world.exact, Q[out + 1:], 1)
+    assert free.valid
+    assert evaluate_episode(world, rec, limits, 0.1).limit_violations == 0
+
+
 def test_a_kick_is_rejoined_at_the_next_tick(world, planner, limits, rng):
     plain = run_one(world, planner, _script(world, 1), 20.0, CONFIG)
     dq = np.full(world.robot.dof, 0.04) * np.sign(rng.uniform(-1, 1, world.robot.dof))

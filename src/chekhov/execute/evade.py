@@ -57,6 +57,8 @@ HOLD_STEP_S = 0.1
 """s, how much earlier each next brake start :meth:`Evader.hold_short` tries is."""
 HOLD_TRIES = 5
 """How many brake starts :meth:`Evader.hold_short` tries."""
+UNSTICK_S = 0.3
+"""s, how soon :meth:`Evader.unstick`'s move must be out of the collision it starts in."""
 COARSE = 4
 """Every how many samples of a motion :meth:`Evader.safe_in_time` checks first."""
 ESCAPE_TRIES = 64
@@ -170,6 +172,36 @@ class Evader:
                 if safe.any():
                     return moves[int(np.argmax(safe))]
         return None
+
+    def unstick(self, now: State, t0: float, restore: Obstacles) -> Motion | None:
+        """Out of a collision the arm is already in (a stop after a kick can end in the
+        scene; then no dodge is safe, since each starts in collision, and no plan starts):
+        of the Ruckig moves from ``now`` (clock time t0, s) to the dodge targets
+        (:meth:`targets`), the one that is out soonest — every configuration from then on
+        free of its window's sweep with no margin, and within the limits — the nearest
+        target on a tie, out within :data:`UNSTICK_S`; None when none is."""
+        z, dt = np.zeros_like(now.q), self.settings.check_dt_s
+        targets = self.targets(now.q, t0)
+        packs = self.windows(t0, restore, 0.0)
+        best: tuple[int, Motion] | None = None
+        for i in np.flatnonzero(self.world.fast.valid_in(packs[-1], targets)):
+            piece = ruckig_piece(now, State(targets[i], z, z), t0, self.limits, "dodge",
+                                 self.bounds)
+            if piece is None:
+                continue
+            move = Motion((piece,))
+            ts, Q = move.positions(t0, max(t0 + len(packs) * WINDOW_S, move.t_end), dt)
+            if not self.world.robot.within_limits(Q).all():
+                continue
+            win = np.minimum(((ts - t0) / WINDOW_S + 1e-9).astype(int), len(packs) - 1)
+            free = np.ones(len(ts), dtype=bool)
+            for w in np.unique(win):
+                free[win == w] = self.world.fast.valid_in(packs[w], Q[win == w])
+            bad = np.flatnonzero(~free)
+            out = 0 if len(bad) == 0 else int(bad[-1]) + 1
+            if out < len(ts) and ts[out] - t0 <= UNSTICK_S and (best is None or out < best[0]):
+                best = (out, move)
+        return None if best is None else best[1]
 
     def escapes(self, now: State, t0: float, restore: Obstacles) -> list[Motion]:
         """The last resort when no dodge is safe and neither is stopping: Ruckig moves from
