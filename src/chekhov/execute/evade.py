@@ -173,9 +173,20 @@ class Evader:
                     return moves[int(np.argmax(safe))]
         return None
 
+    def in_scene(self, q: Array, restore: Obstacles) -> bool:
+        """Whether configuration q (K,) rad is in collision with the static scene (the fast
+        checker, no dynamic obstacles; ``restore``'s put back after)."""
+        fast = self.world.fast
+        try:
+            fast.set_obstacles({})
+            return not bool(fast.valid(q[None])[0])
+        finally:
+            fast.set_obstacles(restore)
+
     def unstick(self, now: State, t0: float, restore: Obstacles) -> Motion | None:
-        """Out of a collision the arm is already in (a stop after a kick can end in the
-        scene; then no dodge is safe, since each starts in collision, and no plan starts):
+        """Out of a collision with the static scene the arm is already in (a stop after a
+        kick can end in it; then no dodge is safe, since each starts in collision, and no
+        plan starts; see :meth:`in_scene`):
         of the Ruckig moves from ``now`` (clock time t0, s) to the dodge targets
         (:meth:`targets`), the one that is out soonest — every configuration from then on
         free of its window's sweep with no margin, and within the limits — the nearest
@@ -234,10 +245,11 @@ class Evader:
         tried from about one stopping time before t_hit back to t0, :data:`HOLD_STEP_S`
         apart, at most :data:`HOLD_TRIES`; None when none is safe."""
         t_b = t_hit - HOLD_STEP_S - stop_time(motion.sample(t_hit), self.limits)
+        packs = self.windows(t0, restore)
         for _ in range(HOLD_TRIES):
             t_b = max(t_b, t0)
             brake = brake_along(motion, t_b, self.limits)
-            if self.safe_in_time([motion.then(brake)], t0, restore).all():
+            if self.safe_in_time([motion.then(brake)], t0, restore, windows=packs).all():
                 return brake
             if t_b <= t0:
                 break

@@ -361,15 +361,15 @@ class Executor:
     def _dodge(self, t: float) -> bool:
         """Out of the obstacles' way when braking along the path is not: the
         :class:`~chekhov.execute.evade.Evader`'s dodge from the next command — or, when the
-        arm is in collision there already, its way out (:meth:`Evader.unstick
+        arm is in the static scene there already, its way out (:meth:`Evader.unstick
         <chekhov.execute.evade.Evader.unstick>`) — installed (the plan asked for cancelled, a
         new one asked for) when there is one."""
         assert self.motion is not None
         dt = self.config.control_dt_s
         now = self.motion.sample(t + dt)
         move = self.evader.dodge(now, t + dt, self._seen)
-        if move is None and not self.world.fast.valid(now.q[None])[0]:
-            move = self.evader.unstick(now, t + dt, self._seen)     # in collision already
+        if move is None and self.evader.in_scene(now.q, self._seen):   # in the scene already
+            move = self.evader.unstick(now, t + dt, self._seen)
         if move is None:
             return False
         self._cancel()
