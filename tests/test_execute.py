@@ -570,3 +570,23 @@ def test_warmup_loads_the_reaction_kernels_and_changes_nothing(world, planner):
     assert ex.motion is None and not ex.reactions and ex.counters.safe_stops == 0
     assert world.fast.obstacles_version == version and "box" in world.fast.obstacle_names
     world.fast.set_obstacles({})
+
+
+def test_the_evaluators_escape_motions_stay_within_the_limits(limits):
+    """The unavoidability verdict tries constant-acceleration motions: their positions must be
+    reachable within the limits — mean velocities within the velocity limits, and the first
+    step's displacement from the start velocity no more than half the acceleration limit
+    × dt² (integrating with the step's end velocity moved twice that)."""
+    from chekhov.execute.evaluate import constant_acceleration_path
+    rng = np.random.default_rng(0)
+    dt = 0.01
+    for _ in range(20):
+        v0 = rng.uniform(-1, 1, len(limits.velocity)) * limits.velocity
+        acc = rng.choice([-1.0, 1.0], len(v0)) * limits.acceleration
+        Q = constant_acceleration_path(np.zeros(len(v0)), v0, acc, 40, dt, limits)
+        v_mean = np.diff(Q, axis=0) / dt
+        assert (np.abs(v_mean) <= limits.velocity * (1 + 1e-9)).all()
+        a_first = 2 * (v_mean[0] - v0) / dt
+        assert (np.abs(a_first) <= limits.acceleration * (1 + 1e-9)).all()
+        a_mean = np.diff(v_mean, axis=0) / dt
+        assert (np.abs(a_mean) <= limits.acceleration * (1 + 1e-9)).all()

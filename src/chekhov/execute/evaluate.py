@@ -180,13 +180,24 @@ def _escapable(truth: TrueWorld, record: EpisodeRecord, hit: int, limits: Limits
     lo, hi = truth.robot.lower, truth.robot.upper
     for _ in range(ESCAPES):
         acc = rng.uniform(-1, 1, len(q0)) * limits.acceleration
-        q, v, ok = q0.copy(), v0.copy(), True
-        for k in range(1, len(ts)):
-            v = np.clip(v + acc * 0.01, -limits.velocity, limits.velocity)
-            q = q + v * 0.01
-            if np.any(q < lo) or np.any(q > hi) or truth.collides(q, t0 + float(ts[k])):
-                ok = False
-                break
-        if ok:
+        Q = constant_acceleration_path(q0, v0, acc, len(ts), 0.01, limits)
+        if all(not (np.any(q < lo) or np.any(q > hi) or truth.collides(q, t0 + float(t)))
+               for q, t in zip(Q[1:], ts[1:], strict=True)):
             return True
     return False
+
+
+def constant_acceleration_path(q0: Array, v0: Array, acc: Array, n: int, dt: float,
+                               limits: Limits) -> Array:
+    """(n, K) rad: from q0 (K,) rad at velocity v0 (K,) rad/s, each joint at constant
+    acceleration ``acc`` (K,) rad/s² until its velocity limit, every dt (s). Exact for that
+    motion (velocity linear over each step: its positions advance by the step's mean
+    velocity), so it stays within the acceleration limits; integrating with the step's end
+    velocity would move up to twice as far in the first step."""
+    Q = np.empty((n, len(q0)))
+    Q[0], v = q0, np.asarray(v0, dtype=float)
+    for k in range(1, n):
+        v_next = np.clip(v + acc * dt, -limits.velocity, limits.velocity)
+        Q[k] = Q[k - 1] + 0.5 * (v + v_next) * dt
+        v = v_next
+    return Q
