@@ -1,7 +1,8 @@
 """Where the executive's replans run: :class:`InlineWorker` (on the simulated clock: the plan
-is computed at once and becomes usable its measured wall time after the request, so a run is
-deterministic whenever planning beats its budget) or :class:`ThreadWorker` (a real thread
-beside a real-time control loop). Both run :func:`plan_motion`."""
+is computed at once and becomes usable its measured wall time after the request — so a run
+is not bit-reproducible: the tick a reply joins on, and what the anytime planner improves in
+its time, follow the machine's speed) or :class:`ThreadWorker` (a real thread beside a
+real-time control loop). Both run :func:`plan_motion`."""
 
 from __future__ import annotations
 
