@@ -116,7 +116,7 @@ def react_scene(world: World, config: ReactConfig,
                 continue
             # the first planner's undisturbed run is the one that timed the script
             reference = entry[1] if planner is planners[0] else None
-            results.append(_episode(world, planner, entry[0], config, reference))
+            results.append(scripted_episode(world, planner, entry[0], config, reference))
             if progress is not None:
                 progress(f"{world.scene.name} {planner.name} episode {i + 1}/"
                          f"{config.episodes}")
@@ -124,8 +124,8 @@ def react_scene(world: World, config: ReactConfig,
     return out
 
 
-def _episode(world: World, planner: Planner, script: EpisodeScript, config: ReactConfig,
-             t_plain: float | None = None) -> EpisodeResult:
+def scripted_episode(world: World, planner: Planner, script: EpisodeScript,
+                     config: ReactConfig, t_plain: float | None = None) -> EpisodeResult:
     """One scripted episode; ``t_plain``: its undisturbed duration (s) when already run with
     this planner and the script has no goal change, else the task alone is run here."""
     if t_plain is None or script.goal_changes:

@@ -1,0 +1,88 @@
+"""Replay chosen ``chekhov react`` episodes on fixed scripts, to compare two versions of the
+executive on the same disturbances. One JSON object per episode and repetition.
+
+    python benchmarks/react_replay.py SCENE EPISODE [EPISODE ...] [--scripts FILE] [--reps N]
+
+An episode's script (kick, goal change, forearm) is timed by an undisturbed run of the
+planner, whose wall time moves replies from tick to tick, so two ``chekhov react`` runs can
+differ by a few ms in every script (the same seed). Here the scripts are made once and kept in
+``--scripts`` (a pickle: load only files you made; written atomically), then replayed with
+whatever ``chekhov`` is imported — e.g. ``PYTHONPATH=/path/to/other/checkout/src``.
+
+Keys: scene, episode, rep, reached, t_reached_s, collision, first_contact_s, unavoidable,
+limit_violations, dodges, safe_stops, holds, replans, failures (plan failures by status),
+step_ms_max (the control step's own compute).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import pickle
+from collections import Counter
+from pathlib import Path
+
+from chekhov import World
+from chekhov.atomic import write_atomic
+from chekhov.execute.benchmark import ReactConfig, executive_planner, run_one
+from chekhov.execute.script import EpisodeScript, make_script, start_and_goal
+
+try:
+    from chekhov.execute.benchmark import scripted_episode
+except ImportError:      # a checkout from before 2026-11-26, to compare against
+    from chekhov.execute.benchmark import _episode as scripted_episode  # type: ignore
+
+
+def scripts_for(world: World, episodes: list[int], config: ReactConfig,
+                path: Path | None) -> dict[int, tuple[EpisodeScript, float]]:
+    """Each episode's script and undisturbed duration (s): read from ``path`` when it holds
+    them, else made (and written there)."""
+    kept: dict[int, tuple[EpisodeScript, float]] = {}
+    if path is not None and path.exists():
+        kept = pickle.loads(path.read_bytes())
+    planner = executive_planner(config.planners[0], world)
+    for i in episodes:
+        if i in kept:
+            continue
+        q0, goal = start_and_goal(world, config.seed, i)
+        rec = run_one(world, planner, EpisodeScript(i, q0, goal, ""), config.undisturbed_limit_s,
+                      config)
+        if rec.t_reached is None:
+            raise SystemExit(f"episode {i}: the undisturbed run does not reach its goal")
+        ee = world.robot.compute_ee_poses(rec.q)[:, :3, 3]
+        kept[i] = (make_script(world, config.seed, i, rec.t_reached, ee, rec.q), rec.t_reached)
+    if path is not None:
+        write_atomic(path, lambda f: pickle.dump(kept, f), mode="wb")
+    return kept
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("scene")
+    ap.add_argument("episodes", type=int, nargs="+")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--scripts", type=Path, default=None)
+    ap.add_argument("--reps", type=int, default=1)
+    args = ap.parse_args()
+    world = World.load(args.scene)
+    config = ReactConfig(episodes=max(args.episodes) + 1, seed=args.seed)
+    scripts = scripts_for(world, args.episodes, config, args.scripts)
+    planner = executive_planner(config.planners[0], world)
+    for i in args.episodes:
+        script, t_plain = scripts[i]
+        for rep in range(args.reps):
+            r = scripted_episode(world, planner, script, config, t_plain)
+            rec, check, c = r.record, r.check, r.record.counters
+            print(json.dumps({
+                "scene": args.scene, "episode": i, "rep": rep, "reached": rec.reached,
+                "t_reached_s": rec.t_reached, "collision": check.collision,
+                "first_contact_s": check.first_contact_s, "unavoidable": check.unavoidable,
+                "limit_violations": check.limit_violations, "dodges": c.dodges,
+                "safe_stops": c.safe_stops, "holds": c.holds, "replans": c.replans,
+                "failures": dict(Counter(c.failures)),
+                "step_ms_max": round(1000 * max(c.step_wall_s), 1) if c.step_wall_s else None,
+            }), flush=True)
+
+
+if __name__ == "__main__":
+    main()
