@@ -24,6 +24,7 @@ from pathlib import Path
 
 from chekhov import World
 from chekhov.atomic import write_atomic
+from chekhov.errors import ChekhovError
 from chekhov.execute.benchmark import ReactConfig, executive_planner, run_one
 from chekhov.execute.script import EpisodeScript, make_script, start_and_goal
 
@@ -39,7 +40,11 @@ def scripts_for(world: World, episodes: list[int], config: ReactConfig,
     them, else made (and written there)."""
     kept: dict[int, tuple[EpisodeScript, float]] = {}
     if path is not None and path.exists():
-        kept = pickle.loads(path.read_bytes())
+        try:
+            kept = pickle.loads(path.read_bytes())
+        except (OSError, EOFError, pickle.UnpicklingError, AttributeError) as e:
+            raise SystemExit(f"react_replay: --scripts {path}: not a scripts file of this "
+                             f"tool ({e})") from e
     planner = executive_planner(config.planners[0], world)
     for i in episodes:
         if i in kept:
@@ -64,7 +69,10 @@ def main() -> None:
     ap.add_argument("--scripts", type=Path, default=None)
     ap.add_argument("--reps", type=int, default=1)
     args = ap.parse_args()
-    world = World.load(args.scene)
+    try:
+        world = World.load(args.scene)
+    except ChekhovError as e:
+        raise SystemExit(f"react_replay: scene {args.scene!r}: {e}") from e
     config = ReactConfig(episodes=max(args.episodes) + 1, seed=args.seed)
     scripts = scripts_for(world, args.episodes, config, args.scripts)
     planner = executive_planner(config.planners[0], world)
