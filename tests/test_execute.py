@@ -208,6 +208,7 @@ def test_an_arm_resting_in_the_scene_gets_out_and_reaches_its_goal(world, planne
     and every dodge starts in collision. The executive gets it out (exactly free within
     Evader.unstick's time, judged at 1 ms steps by the exact checker) and reaches the goal."""
     from chekhov.execute.evade import UNSTICK_S
+    world.set_obstacles({})          # the static scene only (tests before may leave some)
     q0, goal = start_and_goal(world, 0, 0)
     rng = np.random.default_rng(5)
     stuck = None
