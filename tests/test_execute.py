@@ -337,22 +337,30 @@ def test_an_arm_at_rest_beside_a_still_obstacle_gets_its_plan(world, planner, li
     assert float(np.abs(q - q0).max()) > 0.05          # it left
 
 
-def test_a_resting_arm_dodges_a_forearm_coming_at_it(world, limits):
-    """A ball flying at the resting arm's elbow at 0.5 m/s: the directed dodge targets push the
-    arm's points nearest its path away from it, and a dodge is found that is free at every
-    step of the ball's predicted motion (time windows) — and of its true motion."""
-    from chekhov.execute.evade import Evader, EvadeSettings, _arm_points
-    from chekhov.execute.motion import Bounds, Motion
-    from chekhov.execute.obstacles import ObstacleTracks, obstacles_at, to_segment
+def _ball_at_the_elbow(world, radius):
+    """The first task case's start q0, a ball of ``radius`` (m) flying at its elbow at 0.5 m/s,
+    and the tracks of two sensor frames of it by t0 = 0.5 s: (q0, ball, tracks, t0)."""
+    from chekhov.execute.obstacles import obstacles_at
     q0, _ = start_and_goal(world, 0, 0)
     elbow = world.robot.compute_joint_placements(q0)[3, :3, 3]
     d = np.array([-1.0, 0.0, 0.0])
-    ball = MovingObstacle("ball", Shape("sphere", (0.06,)), np.eye(3), elbow - 0.6 * d,
+    ball = MovingObstacle("ball", Shape("sphere", (radius,)), np.eye(3), elbow - 0.6 * d,
                           elbow + 0.6 * d, 0.0, 0.5)
     tracks = ObstacleTracks()
     t0 = 0.5
     for stamp in (t0 - 1 / 30, t0):
         tracks.update(obstacles_at((ball,), stamp), stamp)
+    return q0, ball, tracks, t0
+
+
+def test_a_resting_arm_dodges_a_forearm_coming_at_it(world, limits):
+    """A ball flying at the resting arm's elbow at 0.5 m/s: the directed dodge targets push the
+    arm's points nearest its path away from it, and a dodge is found that is free at every
+    step of the ball's predicted motion (time windows) — and of its true motion."""
+    from chekhov.execute.evade import _arm_points
+    from chekhov.execute.motion import Motion
+    from chekhov.execute.obstacles import to_segment
+    q0, ball, tracks, t0 = _ball_at_the_elbow(world, 0.06)
     c = CONFIG.executor
     evader = Evader(world, tracks, EvadeSettings(c.horizon_s, c.margin_m, c.check_dt_s), limits,
                     Bounds(world.robot.lower, world.robot.upper))
@@ -379,16 +387,7 @@ def test_the_dodge_is_the_nearest_target_whose_move_is_safe_sample_by_sample(wor
     the limits and free of its window's sweep at every check step, each sample checked on
     its own."""
     from chekhov.execute.evade import WINDOW_S
-    from chekhov.execute.obstacles import obstacles_at
-    q0, _ = start_and_goal(world, 0, 0)
-    elbow = world.robot.compute_joint_placements(q0)[3, :3, 3]
-    d = np.array([-1.0, 0.0, 0.0])
-    ball = MovingObstacle("ball", Shape("sphere", (0.08,)), np.eye(3), elbow - 0.6 * d,
-                          elbow + 0.6 * d, 0.0, 0.5)
-    tracks = ObstacleTracks()
-    t0 = 0.5
-    for stamp in (t0 - 1 / 30, t0):
-        tracks.update(obstacles_at((ball,), stamp), stamp)
+    q0, _, tracks, t0 = _ball_at_the_elbow(world, 0.08)
     c = CONFIG.executor
     bounds = Bounds(world.robot.lower, world.robot.upper)
 
