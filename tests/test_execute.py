@@ -23,13 +23,16 @@ from chekhov.execute.motion import (
 )
 from chekhov.execute.obstacles import MovingObstacle, ObstacleTracks
 from chekhov.execute.script import EpisodeScript, GoalChange, Kick, make_script, start_and_goal
-from chekhov.execute.simulate import EpisodeRecord
+from chekhov.execute.simulate import EpisodeRecord, SimConfig
 from chekhov.robot.goal import Goal
 from chekhov.scene.model import Shape
 from chekhov.timing import TimingConfig, joint_limits, time_parameterize
 from chekhov.world import World
 
-CONFIG = ReactConfig()
+CONFIG = ReactConfig(sim=SimConfig(charge_compute=False))
+"""The executive's logic on a clock that does not charge its compute (its answers come on the
+ticks the logic says); the charged clock has tests of its own (``CHARGED``)."""
+CHARGED = ReactConfig()
 DT = CONFIG.executor.control_dt_s
 
 
@@ -283,6 +286,77 @@ def test_scripted_episodes_never_collide_with_the_true_forearm(world, planner, l
         assert check.min_clearance_m > 0
         reached += rec.reached
     assert reached >= 2
+
+
+def test_charged_compute_episodes_never_collide_and_stay_within_limits(world, planner,
+                                                                      limits):
+    """The same scripted episodes with the executive's own compute charged on the clock
+    (steps that overrun miss ticks; the arm follows the motion it had, then joins back)."""
+    reached = 0
+    for index in range(3):
+        plain = run_one(world, planner, _script(world, index), 20.0, CHARGED)
+        ee = world.robot.compute_ee_poses(plain.q)[:, :3, 3]
+        script = make_script(world, 0, index, plain.t_reached, ee, plain.q)
+        rec = run_one(world, planner, script, 3 * plain.t_reached + 4, CHARGED)
+        check = evaluate_episode(world, rec, limits, 0.15)
+        assert not check.collision, f"episode {index}: contact at {check.first_contact_s} s"
+        assert check.limit_violations == 0, check.violation_kinds
+        reached += rec.reached
+    assert reached >= 2
+
+
+def test_a_step_that_overruns_its_tick_is_charged_on_the_clock(world, planner, limits):
+    """Every step that changes the motion is made to take 35 ms (its measured wall time
+    replaced): the arm follows the motion commanded before that step until the next step,
+    4 ticks on, each reaction answered in it starts no earlier than 4 ticks after it was seen,
+    the arm off the new motion is joined back ("lag", not counted as a disturbance), and
+    the episode stays within the limits and reaches its goal."""
+    from chekhov.execute.executor import Executor
+    from chekhov.execute.simulate import run_episode
+    from chekhov.execute.worker import InlineWorker
+
+    class SlowExecutor(Executor):
+        def __init__(self, *args):
+            super().__init__(*args)
+            self.before = {}
+
+        def step(self, obs):
+            motion = self.motion
+            cmd = super().step(obs)
+            if motion is not None and self.motion is not motion:
+                # the loop's motion meanwhile: the join back after a kick, else the one it had
+                self.before[round(obs.t / DT)] = self.immediate_motion or motion
+                self.counters.step_wall_s[-1] = 0.035
+            return cmd
+
+    plain = run_one(world, planner, _script(world, 0), 20.0, CONFIG)
+    ee = world.robot.compute_ee_poses(plain.q)[:, :3, 3]
+    script = make_script(world, 0, 0, plain.t_reached, ee, plain.q)
+    ex = SlowExecutor(world, InlineWorker(world, planner, CHARGED.executor.timing),
+                      script.goal, CHARGED.executor)
+    rec = run_episode(world, ex, script, 3 * plain.t_reached + 4, CHARGED.sim)
+    ticks = {round(t / DT): i for i, t in enumerate(rec.times)}
+    slow = [k for k in ex.before if k in ticks]
+    assert len(slow) >= 3
+    # until the next step, 4 ticks on, the arm follows the motion of the last step in time
+    # (the one before a slow step, unless that step was slow too), or the join back after a
+    # kick (or a lag) seen in the slow step
+    kicked = {round(r.t_observed / DT) for r in rec.reactions if r.kind in ("kick", "lag")}
+    followed = [k for k in slow if k + 4 in ticks and (k - 4 not in slow or k in kicked)]
+    assert followed
+    for k in followed:
+        m = ex.before[k]
+        for j in (1, 2, 3, 4):
+            if rec.kicked[ticks[k + j]]:     # a scripted kick on a missed tick: from there
+                break
+            assert np.allclose(rec.q[ticks[k + j]], m.sample((k + j) * DT).q, atol=1e-12)
+    answered = [r for r in rec.reactions if r.kind != "lag" and r.t_reacted is not None]
+    assert answered and all(r.t_reacted - r.t_observed >= 4 * DT - 1e-9 for r in answered
+                            if round(r.t_observed / DT) in slow)
+    assert any(r.kind == "lag" for r in rec.reactions)
+    check = evaluate_episode(world, rec, limits, 0.15)
+    assert check.limit_violations == 0, check.violation_kinds
+    assert rec.reached
 
 
 def test_the_forearm_appears_clear_of_the_arm(world, planner):

@@ -1,12 +1,15 @@
 """The reactive executive's scenario benchmark: ``chekhov react``.
 
     chekhov react [--scenes SCENE...] [--episodes N] [--seed S] [--planners NAME...]
-                  [--budget-ms MS] [--json] [--out FILE]
+                  [--budget-ms MS] [--free-compute] [--json] [--out FILE]
 
 Per scene: pick-and-place episodes (moves between objects' pre-grasp poses) on a simulated
 100 Hz clock, each with a person's forearm sweeping across (0.3-1.0 m/s, seen at 30 Hz with
 40 ms latency), a goal change and a kick; the executed motion is checked afterwards with the
-exact checker against each obstacle's true pose (``chekhov.execute``).
+exact checker against each obstacle's true pose (``chekhov.execute``). The executive's own
+compute is charged on the simulated clock: a step that runs past its 10 ms tick misses ticks,
+the arm goes on along the motion it had, and the step's reactions count from the first
+command after it (``--free-compute``: every step takes no time, as before 2026-11-27).
 
 Output: with ``--json`` one JSON object per scene and planner on stdout (keys: scene,
 planner, episodes, success_rate — goal reached within tolerance before the deadline, among
@@ -16,8 +19,9 @@ distance to the moving obstacles), reaction_latency_ms_p50/_p95/_p99 (disturbanc
 first answering motion commanded: a rejoin, a hold short of the conflict, a brake, a dodge
 or a new plan), resolve_latency_ms_p50/_p95/_p99 (→ a motion to the goal that answers it),
 replans_per_episode, safe_stops, dodges, holds, time_to_goal_ratio (median, against the
-episode's task alone: its goal changes, no forearm, no kick), limit_violations); else a
-table. ``--out`` also writes the JSON lines to a file (atomically).
+episode's task alone: its goal changes, no forearm, no kick), limit_violations,
+overrun_steps (steps over a tick), lag_rejoins (joins back onto a motion after one),
+compute_charged); else a table. ``--out`` also writes the JSON lines to a file (atomically).
 """
 
 from __future__ import annotations
@@ -60,12 +64,14 @@ def _check(args: argparse.Namespace) -> None:
 def _cmd_react(args: argparse.Namespace) -> int:
     from chekhov.execute.benchmark import ReactConfig, react_scene
     from chekhov.execute.interface import ExecutorConfig
+    from chekhov.execute.simulate import SimConfig
     from chekhov.world import World
 
     _check(args)
     config = ReactConfig(episodes=args.episodes, seed=args.seed, planners=tuple(args.planners),
                          executor=replace(ExecutorConfig(),
-                                          planning_budget_s=args.budget_ms / 1000))
+                                          planning_budget_s=args.budget_ms / 1000),
+                         sim=SimConfig(charge_compute=not args.free_compute))
     t0 = time.perf_counter()
 
     def progress(message: str) -> None:
@@ -115,6 +121,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "(default Roadmap+TrajOpt; e.g. also TrajOpt)")
     r.add_argument("--budget-ms", type=checks.int_at_least(10, 5000), default=50,
                    help="a replan's budget, ms (default 50)")
+    r.add_argument("--free-compute", action="store_true",
+                   help="do not charge the executive's own compute on the simulated clock "
+                        "(deterministic but optimistic)")
     r.add_argument("--json", action="store_true", help="one JSON object per line")
     r.add_argument("--out", metavar="FILE", help="also write the JSON lines here")
     r.set_defaults(func=_cmd_react)

@@ -159,11 +159,13 @@ def summarize(scene: str, planner: str, results: list[EpisodeResult | None],
     """The JSON object of one scene and planner (keys: see ``chekhov react --help``)."""
     done = [r for r in results if r is not None]
     success = [r for r in done if r.record.reached]
-    reacted = [1000 * (x.t_reacted - x.t_observed) for r in done for x in r.record.reactions
-               if x.t_reacted is not None]
-    resolved = [1000 * (x.t_resolved - x.t_observed) for r in done for x in r.record.reactions
+    # a "lag" is the arm behind a step that overran: its time is charged to that step's reaction
+    events = [x for r in done for x in r.record.reactions if x.kind != "lag"]
+    reacted = [1000 * (x.t_reacted - x.t_observed) for x in events if x.t_reacted is not None]
+    resolved = [1000 * (x.t_resolved - x.t_observed) for x in events
                 if x.t_resolved is not None]
-    unanswered = sum(1 for r in done for x in r.record.reactions if x.t_reacted is None)
+    unanswered = sum(1 for x in events if x.t_reacted is None)
+    dt = config.executor.control_dt_s
     mins = [r.check.min_clearance_m for r in done if np.isfinite(r.check.min_clearance_m)]
     ratios = [r.record.t_reached / r.undisturbed_s for r in success
               if r.record.t_reached is not None and r.undisturbed_s]
@@ -188,7 +190,7 @@ def summarize(scene: str, planner: str, results: list[EpisodeResult | None],
         "resolve_latency_ms_p50": _pct(resolved, 50),
         "resolve_latency_ms_p95": _pct(resolved, 95),
         "resolve_latency_ms_p99": _pct(resolved, 99),
-        "disturbances": sum(len(r.record.reactions) for r in done),
+        "disturbances": len(events),
         "unanswered_disturbances": unanswered,
         "replans_per_episode": float(np.mean([r.record.counters.replans for r in done]))
         if done else None,
@@ -200,6 +202,9 @@ def summarize(scene: str, planner: str, results: list[EpisodeResult | None],
         "planning_wall_ms_p50": _pct(walls, 50), "planning_wall_ms_p95": _pct(walls, 95),
         "control_step_ms_p50": _pct(steps, 50), "control_step_ms_p99": _pct(steps, 99),
         "control_step_ms_max": max(steps) if steps else None,
+        "overrun_steps": sum(w > dt for r in done for w in r.record.counters.step_wall_s),
+        "lag_rejoins": sum(x.kind == "lag" for r in done for x in r.record.reactions),
+        "compute_charged": config.sim.charge_compute,
         "time_to_goal_ratio": float(np.median(ratios)) if ratios else None,
         "limit_violations": sum(r.check.limit_violations for r in done),
         "problem_episodes": [_problem(r) for r in done if r.check.collision

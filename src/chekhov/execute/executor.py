@@ -63,6 +63,10 @@ class Executor:
         self.bounds = Bounds(world.robot.lower, world.robot.upper)
         self.tracks = ObstacleTracks()
         self.motion: Motion | None = None
+        self.immediate_motion: Motion | None = None
+        """What a control loop beside the executive commands from the tick a kick is seen
+        until the step ends (its checks can take longer than a tick): the unchecked Ruckig
+        join back onto the motion, else the stop; None when this step saw no kick."""
         self.reactions: list[Reaction] = []
         self.counters = Counters()
         self._last: Command | None = None
@@ -84,6 +88,7 @@ class Executor:
         """Take one tick's observation; the command for the next tick (t + control_dt_s)."""
         wall0 = time.perf_counter()
         self._submit_wall = 0.0
+        self.immediate_motion = None
         t, dt = obs.t, self.config.control_dt_s
         if self.motion is None:
             self._install(hold(np.asarray(obs.q, dtype=float), t))
@@ -137,15 +142,22 @@ class Executor:
         self._need = kind
 
     def _check_kick(self, obs: Observation) -> None:
+        """The arm off the motion's state for this tick (kicked, or lagging behind a step
+        that ran past its tick): joined back onto the motion, else stopped or moved aside."""
         last = self._last
         if last is None or self.motion is None:
             return
-        if float(np.abs(obs.q - last.q).max()) <= self.config.kick_tolerance_rad:
-            return
         t = obs.t
+        expected = self.motion.sample(t)
+        c = self.config
+        if float(np.abs(obs.q - expected.q).max()) <= c.kick_tolerance_rad and \
+                float(np.abs(obs.qd - expected.qd).max()) <= c.kick_tolerance_rad_s:
+            return
         self.reactions.append(Reaction("kick", t))
         start = State(np.asarray(obs.q, dtype=float), np.asarray(obs.qd, dtype=float), last.qdd)
-        back = self._rejoin(start, t)
+        backs = self._joins_back(start, t)
+        self.immediate_motion = self.motion.then(self._within_limits(backs, start, t))
+        back = self._rejoin(backs, t)
         if back is not None:
             self.counters.rejoins += 1
             self._install(back)
@@ -179,16 +191,30 @@ class Executor:
         self.counters.safe_stops += 1
         return stop
 
-    def _rejoin(self, start: State, t: float) -> Motion | None:
-        """A Ruckig join from the kicked ``start`` back onto the motion (``rejoin_s`` ahead,
-        else at its end) that is free (exact, to 0.1 s past the join) or safe in time of the
-        predicted motion — with the margin, else (obstacles tracked) without: a kicked arm
-        beside the forearm had stopped where it stood, in the forearm's way."""
+    def _joins_back(self, start: State, t: float) -> list[Motion]:
+        """Ruckig joins from the kicked ``start`` back onto the motion, ``rejoin_s`` ahead and
+        at its end (those within the limits; unchecked)."""
         assert self.motion is not None
         ends = dict.fromkeys((min(t + self.config.rejoin_s, self.motion.t_end),
                               self.motion.t_end))
-        backs = [b for b in (join(start, t, self.motion, e, self.limits, self.bounds)
-                             for e in ends) if b is not None]
+        return [b for b in (join(start, t, self.motion, e, self.limits, self.bounds)
+                            for e in ends) if b is not None]
+
+    def _within_limits(self, backs: list[Motion], start: State, t: float) -> Motion:
+        """The first join back whose positions (every ``check_dt_s``) stay within the joint
+        limits — unchecked for collisions: what the loop commands until the step's checks
+        are done — else the stop from ``start``."""
+        for b in backs:
+            _, Q = b.positions(t, b.pieces[0].t_end, self.config.check_dt_s)
+            if self.world.robot.within_limits(Q).all():
+                return b
+        return stop_from(start, t, self.limits, self.bounds)
+
+    def _rejoin(self, backs: list[Motion], t: float) -> Motion | None:
+        """The first of the joins back (:meth:`_joins_back`) that is free (exact, to 0.1 s
+        past the join) or safe in time of the predicted motion — with the margin, else
+        (obstacles tracked) without: a kicked arm beside the forearm had stopped where it
+        stood, in the forearm's way."""
         for b in backs:
             if self._free(b, t, b.pieces[0].t_end + 0.1) or self._safe([b], t).all():
                 return b
@@ -209,7 +235,8 @@ class Executor:
         if self._pending is None:
             self._need = "obstacle"
         state = self.motion.sample(t)
-        lead = self._handoff_time(t) - t + stop_time(state, self.limits)
+        lead = self._handoff_time(t) - t + stop_time(state, self.limits) + \
+            self._t_react(t) - t
         if self.motion.kind_at(t) in ("rest", "brake", "dodge"):
             lead = max(lead, EVADE_LEAD_S)       # a standing arm needs time to get away
         if t_hit - t <= lead + 2 * c.control_dt_s:
@@ -225,7 +252,7 @@ class Executor:
         assert self.motion is not None
         if self._held == self._token or self.motion.kind_at(t) in ("rest", "brake", "dodge"):
             return
-        t1 = t + self.config.control_dt_s
+        t1 = self._t_react(t)
         held = self.evader.hold_short(self.motion, t1, t_hit, self._seen)
         if held is None:
             return
@@ -245,14 +272,14 @@ class Executor:
         brake along the path if that is free of the predicted motion, else dodge, else brake
         anyway (a dodge gone unsafe: stop, if that is safer)."""
         assert self.motion is not None
-        dt = self.config.control_dt_s
+        t_r = self._t_react(t)
         kind = self.motion.kind_at(t)
         if kind == "dodge" and self._safe([self.motion], t).all():
             return
         moving = bool(np.abs(self.motion.sample(t).qd).max() > 1e-6)
-        brake = brake_along(self.motion, t + dt, self.limits) if moving and kind not in (
+        brake = brake_along(self.motion, t_r, self.limits) if moving and kind not in (
             "brake", "dodge") else None
-        if brake is not None and self._safe([brake], t + dt).all():
+        if brake is not None and self._safe([brake], t_r).all():
             self.counters.safe_stops += 1
         elif self._dodge(t):
             return
@@ -265,20 +292,27 @@ class Executor:
         self._cancel()
         self._need = "obstacle"
         self._install(brake)
-        self._react(t + dt)
+        self._react(t_r)
 
     def _stop_if_safer(self, t: float) -> Motion | None:
         """A dodge no longer safe and none other found: a stop from the next command (each
         joint braking) when the dodge is not safe in time even with no margin and the stop
         is; else None (the dodge goes on)."""
         assert self.motion is not None
-        dt, ev = self.config.control_dt_s, self.evader
+        t_r, ev = self._t_react(t), self.evader
         if ev.safe_in_time([self.motion], t, self._seen, 0.0).all():
             return None
-        stop = stop_from(self.motion.sample(t + dt), t + dt, self.limits, self.bounds)
-        return stop if ev.safe_in_time([stop], t + dt, self._seen, 0.0).all() else None
+        stop = stop_from(self.motion.sample(t_r), t_r, self.limits, self.bounds)
+        return stop if ev.safe_in_time([stop], t_r, self._seen, 0.0).all() else None
 
     # --- plans ------------------------------------------------------------------------
+    def _t_react(self, t: float) -> float:
+        """s, where a reaction computed on the tick at ``t`` starts: ``reaction_lead_s``
+        ahead (whole ticks, at least one), so that the motion commanded until then stands
+        while the reaction is computed."""
+        dt = self.config.control_dt_s
+        return t + dt * max(1, round(self.config.reaction_lead_s / dt))
+
     def _handoff_time(self, t: float) -> float:
         dt = self.config.control_dt_s
         return t + dt * (1 + math.ceil(self._budget / dt - 1e-9))
@@ -319,7 +353,7 @@ class Executor:
                     self.motion.kind_at(t) != "dodge":
                 self._dodge(t)
             return
-        t_join = t + self.config.control_dt_s
+        t_join = self._t_react(t)
         new = self._joined(reply, t_join)
         if new is None:
             self._failed("join_in_collision")
@@ -365,18 +399,18 @@ class Executor:
         <chekhov.execute.evade.Evader.unstick>`) — installed (the plan asked for cancelled, a
         new one asked for) when there is one."""
         assert self.motion is not None
-        dt = self.config.control_dt_s
-        now = self.motion.sample(t + dt)
-        move = self.evader.dodge(now, t + dt, self._seen)
+        t_r = self._t_react(t)
+        now = self.motion.sample(t_r)
+        move = self.evader.dodge(now, t_r, self._seen)
         if move is None and self.evader.in_scene(now.q, self._seen):   # in the scene already
-            move = self.evader.unstick(now, t + dt, self._seen)
+            move = self.evader.unstick(now, t_r, self._seen)
         if move is None:
             return False
         self._cancel()
         self._need = "obstacle"
         self._install(move)
         self.counters.dodges += 1
-        self._react(t + dt)
+        self._react(t_r)
         return True
 
     def _safe(self, motions: list[Motion], t0: float) -> NDArray[np.bool_]:

@@ -29,7 +29,14 @@ class ExecutorConfig:
         max_budget_s: s, the budget after failed replans (doubling each time).
         horizon_s: s, how far ahead the obstacles' motion is predicted.
         margin_m: m, how much the obstacles are inflated when planning and monitoring.
-        kick_tolerance_rad: rad, a measured position this far from the command is a kick.
+        reaction_lead_s: s, how far ahead of its tick a reaction (a hold, brake or dodge, or
+            a plan joined on) starts (whole ticks, at least one): the motion commanded until
+            then stands, so the control loop goes on commanding it while the reaction is
+            computed. A reaction computed in longer than that is late: the arm is off the
+            new motion when it comes, and joins back onto it (a "lag", as after a kick).
+        kick_tolerance_rad, kick_tolerance_rad_s: rad and rad/s, a measured position or
+            velocity this far from the command is a kick (or a lag: the arm behind a step
+            that ran past its tick).
         check_dt_s: s, the time step of the checks along a motion.
         rejoin_s: s, how far ahead on its motion a kicked arm rejoins it.
         join_offsets_s: s, where on a new plan's trajectory the join aims, tried in order.
@@ -43,7 +50,9 @@ class ExecutorConfig:
     max_budget_s: float = 0.64
     horizon_s: float = 0.6
     margin_m: float = 0.04
+    reaction_lead_s: float = 0.01
     kick_tolerance_rad: float = 1e-3
+    kick_tolerance_rad_s: float = 1e-3
     check_dt_s: float = 0.01
     rejoin_s: float = 0.25
     join_offsets_s: tuple[float, ...] = (0.15, 0.3, 0.0)

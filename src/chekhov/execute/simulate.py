@@ -4,6 +4,21 @@ put it (perfect tracking) unless a scripted kick displaces it, the sensor takes 
 obstacles' true poses every ``sensor_period_s`` and delivers it ``sensor_latency_s`` later,
 and goal changes arrive when scripted. The executed motion is recorded at the control rate
 (:class:`EpisodeRecord`). Units: s, rad.
+
+The executive's own compute is charged on the clock (``SimConfig.charge_compute``): a step
+whose wall time (an inline worker's planning left out: that is charged by the worker) runs
+past its tick misses every tick until the first one after it ends. Meanwhile the control loop
+goes on commanding the motion the arm was following (the last one a step finished in time
+with), so the arm follows that. A reaction starts ahead of its tick
+(``ExecutorConfig.reaction_lead_s``) on a motion unchanged until then, so a step that ends by
+then costs nothing; the reactions of one that ends later start no earlier than its end
+(``t_reacted`` and ``t_resolved`` moved on), and the executive sees the arm off its new
+motion at its next step, as a lagging arm, and joins back onto it (that reaction's kind is
+"lag", not a disturbance: its time is already charged to the reaction that overran). A kicked
+arm is not left to snap back onto its old motion meanwhile: the loop commands the
+executive's unchecked join back (``Executor.immediate_motion``, Ruckig, well under a tick)
+from the kick's tick. Scripted kicks and goal changes that fall on missed ticks arrive at the
+next step.
 """
 
 from __future__ import annotations
@@ -15,6 +30,7 @@ from numpy.typing import NDArray
 
 from chekhov.execute.executor import Executor
 from chekhov.execute.interface import Counters, Observation, Reaction
+from chekhov.execute.motion import Motion
 from chekhov.execute.obstacles import MovingObstacle, obstacles_at
 from chekhov.execute.script import EpisodeScript
 from chekhov.robot.goal import Goal
@@ -32,11 +48,14 @@ class SimConfig:
         sensor_latency_s: s, from a frame's exposure to its delivery.
         kick_halvings: how often a kick that would put the arm in collision or outside its
             limits is halved before it is dropped.
+        charge_compute: a step's own wall time is charged on the clock (module docstring);
+            False: every step takes no time (deterministic, but optimistic).
     """
 
     sensor_period_s: float = 1.0 / 30.0
     sensor_latency_s: float = 0.04
     kick_halvings: int = 4
+    charge_compute: bool = True
 
 
 @dataclass(frozen=True, eq=False)
@@ -74,9 +93,11 @@ def run_episode(world: World, executor: Executor, script: EpisodeScript, deadlin
     kicks = list(script.kicks)
     changes = list(script.goal_changes)
     applied: list[Array] = []
-    next_frame, reached_at = 0, None
+    next_frame, reached_at, lagged = 0, None, False
+    following: Motion | None = None     # what the arm is tracking (the loop's commands)
     qdd = np.zeros_like(q)
-    for i in range(int(np.ceil(deadline_s / dt)) + 1):
+    i, n_ticks = 0, int(np.ceil(deadline_s / dt)) + 1
+    while i < n_ticks:
         t = i * dt
         kicked = False
         while kicks and kicks[0].t <= t + 1e-9:
@@ -93,18 +114,72 @@ def run_episode(world: World, executor: Executor, script: EpisodeScript, deadlin
             stamp = next_frame * config.sensor_period_s
             frame = obstacles_at(script.obstacles, stamp)
             next_frame += 1
+        seen = _answered(executor.reactions)
         cmd = executor.step(Observation(t, q, qd, frame, stamp, goal))
+        if lagged:
+            _relabel_lag(executor.reactions, len(seen), kicked)
         rows.append((t, q.copy(), qd.copy(), qdd.copy(), kicked, cmd.mode))
         if executor.done and t >= script.last_event_s and not changes and not kicks:
             reached_at = t
             break
-        q, qd, qdd = np.array(cmd.q), np.array(cmd.qd), np.array(cmd.qdd)
+        missed = _missed_ticks(executor, dt) if config.charge_compute else 0
+        lagged = missed > 0 and following is not None
+        if not lagged:
+            q, qd, qdd = np.array(cmd.q), np.array(cmd.qd), np.array(cmd.qdd)
+            following = executor.motion
+            i += 1
+            continue
+        # a kick: the loop joins back at once, unchecked (the step's checks are what overran)
+        following = executor.immediate_motion or following
+        assert following is not None
+        _charge(executor.reactions, seen, t + missed * dt)
+        for j in range(1, missed + 1):       # the loop goes on commanding what it had
+            s = following.sample(t + j * dt)
+            if j < missed:
+                rows.append((t + j * dt, s.q, s.qd, s.qdd, False,
+                             following.kind_at(t + j * dt)))
+            q, qd, qdd = s.q.copy(), s.qd.copy(), s.qdd.copy()
+        i += missed
     return EpisodeRecord(
         np.array([r[0] for r in rows]), np.array([r[1] for r in rows]),
         np.array([r[2] for r in rows]), np.array([r[3] for r in rows]),
         np.array([r[4] for r in rows], dtype=bool), tuple(r[5] for r in rows),
         script.obstacles, executor.goal, reached_at is not None, reached_at,
         tuple(executor.reactions), executor.counters, tuple(applied))
+
+
+def _missed_ticks(executor: Executor, dt: float) -> int:
+    """Ticks the last step missed: 0 when its compute (s) fit in its tick, else the ticks
+    until the first one after it ended."""
+    walls = executor.counters.step_wall_s
+    w = walls[-1] if walls else 0.0
+    return 0 if w <= dt else int(np.ceil(w / dt - 1e-9))
+
+
+def _answered(reactions: list[Reaction]) -> list[tuple[float | None, float | None]]:
+    return [(r.t_reacted, r.t_resolved) for r in reactions]
+
+
+def _charge(reactions: list[Reaction], seen: list[tuple[float | None, float | None]],
+            t_in: float) -> None:
+    """Reactions answered in an overrunning step start no earlier than ``t_in`` (s), the
+    tick the step's answer is in by."""
+    for k, r in enumerate(reactions):
+        was = seen[k] if k < len(seen) else (None, None)
+        if r.t_reacted is not None and was[0] is None:
+            r.t_reacted = max(r.t_reacted, t_in)
+        if r.t_resolved is not None and was[1] is None:
+            r.t_resolved = max(r.t_resolved, t_in)
+
+
+def _relabel_lag(reactions: list[Reaction], first_new: int, kicked: bool) -> None:
+    """The arm off its motion after an overrunning step lagged; it was not kicked (unless a
+    scripted kick came on this tick too)."""
+    if kicked:
+        return
+    for r in reactions[first_new:]:
+        if r.kind == "kick":
+            r.kind = "lag"
 
 
 def shrunk_kick(world: World, q: Array, qd: Array, dq: Array, halvings: int,
