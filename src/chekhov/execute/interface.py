@@ -34,6 +34,8 @@ class ExecutorConfig:
             then stands, so the control loop goes on commanding it while the reaction is
             computed. A reaction computed in longer than that is late: the arm is off the
             new motion when it comes, and joins back onto it (a "lag", as after a kick).
+            Measured on the charged clock (tabletop_pole and panda_cage, 6 episodes each,
+            one run): reaction p95 40 ms at 10 ms of lead, 48-50 ms at 20, 60-108 ms at 30.
         kick_tolerance_rad, kick_tolerance_rad_s: rad and rad/s, a measured position or
             velocity this far from the command is a kick (or a lag: the arm behind a step
             that ran past its tick).
