@@ -30,8 +30,8 @@ from numpy.typing import NDArray
 
 from chekhov.execute.executor import Executor
 from chekhov.execute.interface import Counters, Observation, Reaction
-from chekhov.execute.motion import Motion
-from chekhov.execute.obstacles import MovingObstacle, obstacles_at
+from chekhov.execute.motion import Motion, State
+from chekhov.execute.obstacles import MovingObstacle, Obstacles, obstacles_at
 from chekhov.execute.script import EpisodeScript
 from chekhov.robot.goal import Goal
 from chekhov.world import World
@@ -107,13 +107,7 @@ def run_episode(world: World, executor: Executor, script: EpisodeScript, deadlin
                 q, kicked = q + dq, True
                 applied.append(dq)
         goal = changes.pop(0).goal if changes and changes[0].t <= t + 1e-9 else None
-        frame, stamp = None, None
-        if next_frame * config.sensor_period_s + config.sensor_latency_s <= t + 1e-9:
-            while (next_frame + 1) * config.sensor_period_s + config.sensor_latency_s <= t + 1e-9:
-                next_frame += 1
-            stamp = next_frame * config.sensor_period_s
-            frame = obstacles_at(script.obstacles, stamp)
-            next_frame += 1
+        frame, stamp, next_frame = _frame_due(script, config, next_frame, t)
         seen = _answered(executor.reactions)
         cmd = executor.step(Observation(t, q, qd, frame, stamp, goal))
         if lagged:
@@ -133,12 +127,8 @@ def run_episode(world: World, executor: Executor, script: EpisodeScript, deadlin
         following = executor.immediate_motion or following
         assert following is not None
         _charge(executor.reactions, seen, t + missed * dt)
-        for j in range(1, missed + 1):       # the loop goes on commanding what it had
-            s = following.sample(t + j * dt)
-            if j < missed:
-                rows.append((t + j * dt, s.q, s.qd, s.qdd, False,
-                             following.kind_at(t + j * dt)))
-            q, qd, qdd = s.q.copy(), s.qd.copy(), s.qdd.copy()
+        now = _follow(following, t, missed, dt, rows)
+        q, qd, qdd = now.q.copy(), now.qd.copy(), now.qdd.copy()
         i += missed
     return EpisodeRecord(
         np.array([r[0] for r in rows]), np.array([r[1] for r in rows]),
@@ -146,6 +136,29 @@ def run_episode(world: World, executor: Executor, script: EpisodeScript, deadlin
         np.array([r[4] for r in rows], dtype=bool), tuple(r[5] for r in rows),
         script.obstacles, executor.goal, reached_at is not None, reached_at,
         tuple(executor.reactions), executor.counters, tuple(applied))
+
+
+def _frame_due(script: EpisodeScript, config: SimConfig, next_frame: int, t: float
+               ) -> tuple[Obstacles | None, float | None, int]:
+    """The latest sensor frame delivered by clock time t (s) and not handed over yet — its
+    obstacles' true poses and its stamp (s) — or (None, None); and the next frame's number."""
+    period, latency = config.sensor_period_s, config.sensor_latency_s
+    if next_frame * period + latency > t + 1e-9:
+        return None, None, next_frame
+    while (next_frame + 1) * period + latency <= t + 1e-9:
+        next_frame += 1
+    stamp = next_frame * period
+    return obstacles_at(script.obstacles, stamp), stamp, next_frame + 1
+
+
+def _follow(following: Motion, t: float, missed: int, dt: float,
+            rows: list[tuple[float, Array, Array, Array, bool, str]]) -> State:
+    """The ticks after t (s) that a step missed: the arm follows ``following`` (recorded in
+    ``rows``); its state at the tick of the next step."""
+    for j in range(1, missed):
+        s = following.sample(t + j * dt)
+        rows.append((t + j * dt, s.q, s.qd, s.qdd, False, following.kind_at(t + j * dt)))
+    return following.sample(t + missed * dt)
 
 
 def _missed_ticks(executor: Executor, dt: float) -> int:
