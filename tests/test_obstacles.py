@@ -46,6 +46,45 @@ def test_set_obstacles_equals_adding_them_one_by_one(worlds):
         single.remove_obstacle(name)
 
 
+def test_obstacles_resized_and_moved_in_place_decide_as_a_rebuild(worlds):
+    """Setting obstacles with the names and shape kinds of those set now resizes and moves
+    the exact checker's geometries in place: its collisions, distances, margins and bounds
+    are those of a checker that added them from scratch."""
+    reshaped, fresh = worlds
+    rng = np.random.default_rng(9)
+    Q = reshaped.robot.sample_uniform(rng, 300)
+    first = _obstacles(rng, 6)
+    reshaped.set_obstacles(first)
+    pairs_before = len(reshaped.exact.geom_model.collisionPairs)
+    reshaped.exact.pair_distances(Q[0], np.arange(4))        # data made before the change
+    second = {n: (Shape(sh.kind, tuple(1.6 * np.asarray(sh.size))), T @ _shift(rng))
+              for n, (sh, T) in _obstacles(rng, 6).items()}
+    try:
+        reshaped.set_obstacles(second)
+        for name, (shape, T) in second.items():
+            fresh.add_obstacle(name, shape, T)
+        a, b = reshaped.exact, fresh.exact
+        assert len(a.geom_model.collisionPairs) == pairs_before
+        assert np.array_equal(a.valid(Q), b.valid(Q))
+        assert not a.valid(Q).all()                               # the obstacles matter
+        pairs = np.arange(len(a.geom_model.collisionPairs))
+        margins = np.full(len(pairs), 0.05)
+        for q in Q[:20]:
+            assert np.allclose(a.pair_distances(q, pairs), b.pair_distances(q, pairs))
+            assert np.array_equal(a.pairs_within(q, margins), b.pairs_within(q, margins))
+            assert np.allclose(a.pair_bounds(q, pairs), b.pair_bounds(q, pairs))
+    finally:
+        reshaped.set_obstacles({})
+        for name in second:
+            fresh.remove_obstacle(name)
+
+
+def _shift(rng):
+    T = np.eye(4)
+    T[:3, 3] = rng.uniform(-0.1, 0.1, 3)
+    return T
+
+
 def test_exact_pairs_and_motion_bounds_match_a_fresh_computation(worlds):
     world = worlds[0]
     world.set_obstacles(_obstacles(np.random.default_rng(2), 7))

@@ -28,6 +28,17 @@ def coal_shape(shape: Shape) -> coal.CollisionGeometry:
     return coal.Sphere(shape.size[0])
 
 
+def _resize(geometry: coal.CollisionGeometry, shape: Shape) -> None:
+    """Give a coal geometry made by :func:`coal_shape` the size of ``shape`` (same kind)."""
+    if shape.kind == "box":
+        geometry.halfSide = np.asarray(shape.size, dtype=float) / 2
+    elif shape.kind == "cylinder":
+        geometry.radius, geometry.halfLength = shape.size[0], shape.size[1] / 2
+    else:
+        geometry.radius = shape.size[0]
+    geometry.computeLocalAABB()
+
+
 class ExactChecker:
     """Exact collision checks with coal on the robot's URDF collision geometry."""
 
@@ -95,11 +106,33 @@ class ExactChecker:
         clash = set(obstacles) & set(self._scene_obstacles)
         if clash:
             raise KeyError(f"obstacle names already used by the scene: {sorted(clash)}")
+        if self._reshape(obstacles):
+            return
         self.geom_model = self._scene_model.copy()
         self._obstacles = dict(self._scene_obstacles)
         for name, (shape, T) in obstacles.items():
             self._add(name, shape, T)
         self._rebuild()
+
+    def _reshape(self, obstacles: Mapping[str, tuple[Shape, Array]]) -> bool:
+        """``obstacles`` set in place when they have the names (in order) and shape kinds of
+        those set now: each coal geometry resized and placed, with no rebuild of the
+        collision pairs and their data (an executive's predicted sweep changes so every
+        sensor frame: ~0.1 ms against 3-9 ms). False (nothing changed) otherwise."""
+        gm = self.geom_model
+        mine = [n for n in self._obstacles if n not in self._scene_obstacles]
+        if mine != list(obstacles):
+            return False
+        objs = [gm.geometryObjects[self._obstacles[n]] for n in mine]
+        if any(type(o.geometry) is not type(coal_shape(sh)) for o, (sh, _) in
+               zip(objs, obstacles.values(), strict=True)):
+            return False
+        for o, (shape, T) in zip(objs, obstacles.values(), strict=True):
+            _resize(o.geometry, shape)
+            o.placement = pin.SE3(np.asarray(T, dtype=float))
+        self._placed = None      # the margin data's placements are stale
+        self._spheres = None
+        return True
 
     def move_obstacle(self, name: str, T_world_obj: Array) -> None:
         self.geom_model.geometryObjects[self._obstacles[name]].placement = pin.SE3(

@@ -14,6 +14,7 @@ duration alone had failed an episode that moved 1 m more, undisturbed by anythin
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
@@ -83,11 +84,19 @@ def executive_planner(name: str, world: World) -> Planner:
     return planner
 
 
+@functools.lru_cache(maxsize=2)
+def checking_world(world: World) -> World:
+    """The executive's own world beside the one its worker plans in (as with a worker on a
+    thread): planning does not change the obstacles the executive checks against, so its
+    exact checker keeps them and only resizes and moves them each sensor frame."""
+    return World(world.scene, world.robot)
+
+
 def run_one(world: World, planner: Planner, script: EpisodeScript, deadline_s: float,
             config: ReactConfig) -> EpisodeRecord:
     """Run one script with a fresh executive."""
     worker = InlineWorker(world, planner, config.executor.timing)
-    executor = Executor(world, worker, script.goal, config.executor)
+    executor = Executor(checking_world(world), worker, script.goal, config.executor)
     executor.warmup()
     return run_episode(world, executor, script, deadline_s, config.sim)
 
