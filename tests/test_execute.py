@@ -12,6 +12,7 @@ from chekhov.collision.path_check import exact_path_decision
 from chekhov.execute.benchmark import ReactConfig, executive_planner, run_one
 from chekhov.execute.evade import Evader, EvadeSettings
 from chekhov.execute.evaluate import TrueWorld, evaluate_episode, limit_violations
+from chekhov.execute.interface import ExecutorConfig
 from chekhov.execute.motion import (
     Bounds,
     State,
@@ -29,9 +30,11 @@ from chekhov.scene.model import Shape
 from chekhov.timing import TimingConfig, joint_limits, time_parameterize
 from chekhov.world import World
 
-CONFIG = ReactConfig(sim=SimConfig(charge_compute=False))
+CONFIG = ReactConfig(executor=ExecutorConfig(search_budget_s=None),
+                     sim=SimConfig(charge_compute=False))
 """The executive's logic on a clock that does not charge its compute (its answers come on the
-ticks the logic says); the charged clock has tests of its own (``CHARGED``)."""
+ticks the logic says, its searches unbounded in wall time); the charged clock has tests of its
+own (``CHARGED``)."""
 CHARGED = ReactConfig()
 DT = CONFIG.executor.control_dt_s
 
@@ -497,6 +500,33 @@ def test_the_dodge_is_the_nearest_target_whose_move_is_safe_sample_by_sample(wor
     assert float(np.abs(expected - q0).max()) > 0.0     # a dodge that moves
 
 
+def test_a_dodge_search_cut_at_its_deadline_goes_on_to_the_same_answer(world, limits,
+                                                                       monkeypatch):
+    """A search past its deadline stops after one chunk of targets; resumed, it goes on with
+    the same targets, skipping those found unsafe: chunk by chunk (a target each, here) it
+    reaches the dodge the whole search finds."""
+    monkeypatch.setattr("chekhov.execute.evade.DODGE_CHUNK", 1)
+    q0, _, tracks, t0 = _ball_at_the_elbow(world, 0.08)
+    c = CONFIG.executor
+    bounds = Bounds(world.robot.lower, world.robot.upper)
+
+    def evader():
+        return Evader(world, tracks, EvadeSettings(c.horizon_s, c.margin_m, c.check_dt_s),
+                      limits, bounds, seed=3)
+    z = np.zeros_like(q0)
+    now = State(q0, z, z)
+    whole = evader().dodge(now, t0, {})
+    assert whole is not None
+    cut, move, calls = evader(), None, 0
+    while move is None and calls < 64:
+        move = cut.dodge(now, t0, {}, deadline=0.0, resume=calls > 0)   # always past
+        calls += 1
+    assert move is not None and np.allclose(move.end.q, whole.end.q, atol=1e-9)
+    assert calls > 1, "the search never had to go on: the test shows nothing"
+    fresh = evader()
+    assert fresh.dodge(now, t0, {}, deadline=0.0) is None and fresh.cut_short
+
+
 def test_an_obstacle_on_the_goal_is_answered_at_once_by_holding_short_of_it(world, planner,
                                                                            limits):
     """A ball appears on the goal while the arm moves there and stays 2 s: no plan can reach
@@ -550,7 +580,7 @@ def test_a_dodge_gone_unsafe_with_no_other_stops_when_stopping_is_safe(world, pl
     ex._seen = predicted_obstacles(ex.tracks, t, c.horizon_s, c.margin_m)
     ex.evader.dodge = lambda *args, **kw: None      # no other dodge to be had
     assert not ex._safe([ex.motion], t).all()
-    ex._evade(t)
+    ex._evade(t, t)          # the conflict as near as can be
     assert ex.motion.kind_at(t + 2 * DT) == "brake"
     ts, Q = ex.motion.positions(t, ex.motion.t_end, DT)
     from chekhov.execute.evaluate import TrueWorld

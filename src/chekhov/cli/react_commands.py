@@ -70,7 +70,9 @@ def _cmd_react(args: argparse.Namespace) -> int:
     _check(args)
     config = ReactConfig(episodes=args.episodes, seed=args.seed, planners=tuple(args.planners),
                          executor=replace(ExecutorConfig(),
-                                          planning_budget_s=args.budget_ms / 1000),
+                                          planning_budget_s=args.budget_ms / 1000,
+                                          search_budget_s=None if args.free_compute else
+                                          ExecutorConfig().search_budget_s),
                          sim=SimConfig(charge_compute=not args.free_compute))
     t0 = time.perf_counter()
 
@@ -122,8 +124,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--budget-ms", type=checks.int_at_least(10, 5000), default=50,
                    help="a replan's budget, ms (default 50)")
     r.add_argument("--free-compute", action="store_true",
-                   help="do not charge the executive's own compute on the simulated clock "
-                        "(deterministic but optimistic)")
+                   help="do not charge the executive's own compute on the simulated clock, "
+                        "nor bound its searches in wall time (deterministic but optimistic)")
     r.add_argument("--json", action="store_true", help="one JSON object per line")
     r.add_argument("--out", metavar="FILE", help="also write the JSON lines here")
     r.set_defaults(func=_cmd_react)

@@ -11,6 +11,8 @@ Units: s, rad, m.
 from __future__ import annotations
 
 import math
+import time
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -72,6 +74,15 @@ ESCAPE_S = 0.3
 
 
 @dataclass(frozen=True)
+class _CutSearch:
+    """A dodge search stopped at its deadline: its targets (N, K) rad, and which of them were
+    found unsafe, per margin (None: the settings')."""
+
+    targets: Array
+    tried: dict[float | None, NDArray[np.bool_]]
+
+
+@dataclass(frozen=True)
 class EvadeSettings:
     """What an :class:`Evader` needs of the executive's configuration: ``horizon_s`` (s) of
     prediction, ``margin_m`` (m) of inflation, ``check_dt_s`` (s) between checked
@@ -93,6 +104,7 @@ class Evader:
         self.rng = np.random.default_rng(seed)
         self._windows: dict[tuple[float, float], list[PackedWorld]] = {}
         self._windows_of: object = None
+        self._cut: _CutSearch | None = None
 
     def windows(self, t0: float, restore: Obstacles, margin_m: float | None = None
                 ) -> list[PackedWorld]:
@@ -162,21 +174,42 @@ class Evader:
             owner = np.repeat([i for i, _ in rows], [len(Q) for _, Q in rows])
             ok[owner[~free]] = False
 
-    def dodge(self, now: State, t0: float, restore: Obstacles) -> Motion | None:
+    @property
+    def cut_short(self) -> bool:
+        """Whether the last dodge search stopped at its deadline (it can be resumed)."""
+        return self._cut is not None
+
+    def dodge(self, now: State, t0: float, restore: Obstacles,
+              deadline: float | None = None, resume: bool = False) -> Motion | None:
         """A Ruckig move from ``now`` at clock time t0 (s) to the nearest of the dodge targets
         (:meth:`targets`) that is safe in time (:meth:`safe_in_time`) with the margin, else
         with none (an arm already inside the margin gets out); None when none is. A target
         where the arm would rest in the last window's sweep is dropped before its move is
         made (that move cannot be safe); the rest are tried nearest first,
         :data:`DODGE_CHUNK` at a time, so the search ends at the first chunk holding a safe
-        one (the answer is the same as trying all)."""
+        one (the answer is the same as trying all).
+
+        Past ``deadline`` (a ``time.perf_counter()`` time) the search stops before its next
+        chunk (after one at least), with None; called again with ``resume``, it goes on with
+        the targets of the search cut short, skipping those already found unsafe (from the
+        earlier state)."""
         z = np.zeros_like(now.q)
-        targets = self.targets(now.q, t0)
+        cut = self._cut if resume else None
+        self._cut = None
+        targets = cut.targets if cut is not None else self.targets(now.q, t0)
+        tried = cut.tried if cut is not None else {m: np.zeros(len(targets), dtype=bool)
+                                                   for m in (None, 0.0)}
         made: dict[int, Motion | None] = {}
+        chunks = 0
         for margin in (None, 0.0):
             packs = self.windows(t0, restore, margin)
-            live = np.flatnonzero(self.world.fast.valid_in(packs[-1], targets))
+            live = np.flatnonzero(self.world.fast.valid_in(packs[-1], targets) &
+                                  ~tried[margin])
             for c0 in range(0, len(live), DODGE_CHUNK):
+                if chunks and past(deadline):
+                    self._cut = _CutSearch(targets, tried)
+                    return None
+                chunks += 1
                 chunk = live[c0:c0 + DODGE_CHUNK]
                 for i in chunk:
                     if i not in made:
@@ -187,6 +220,7 @@ class Evader:
                 safe = self.safe_in_time(moves, t0, restore, windows=packs)
                 if safe.any():
                     return moves[int(np.argmax(safe))]
+                tried[margin][chunk] = True
         return None
 
     def in_scene(self, q: Array, restore: Obstacles) -> bool:
@@ -230,28 +264,34 @@ class Evader:
                 best = (out, move)
         return None if best is None else best[1]
 
-    def escapes(self, now: State, t0: float, restore: Obstacles) -> list[Motion]:
+    def escapes(self, now: State, t0: float, restore: Obstacles,
+                deadline: float | None = None) -> Iterator[Motion]:
         """The last resort when no dodge is safe and neither is stopping: Ruckig moves from
         ``now`` (at clock time t0, s) to the state that a constant acceleration drawn at
         random (each joint up to its limit) reaches :data:`ESCAPE_S` later, then a stop —
         those of :data:`ESCAPE_TRIES` that are safe in time with no margin
-        (:meth:`safe_in_time`, sampled: the caller checks the one it takes exactly). Of
-        moving arms in collision-free random configurations whose stop ran into the static
-        scene, 8% (tabletop_pole), 5% (panda_cage) and 13% (kitchen) had one."""
+        (:meth:`safe_in_time`, sampled: the caller checks the one it takes exactly), made
+        and judged :data:`DODGE_CHUNK` at a time until ``deadline`` (a
+        ``time.perf_counter()`` time) is past (one chunk at least). Of moving arms in
+        collision-free random configurations whose stop ran into the static scene, 8%
+        (tabletop_pole), 5% (panda_cage) and 13% (kitchen) had one."""
         lim, robot = self.limits, self.world.robot
         A = self.rng.uniform(-1.0, 1.0, (ESCAPE_TRIES, len(now.q))) * lim.acceleration
         V = np.clip(now.qd + A * ESCAPE_S, -lim.velocity, lim.velocity)
         Q = np.clip(now.q + 0.5 * (now.qd + V) * ESCAPE_S, robot.lower, robot.upper)
-        moves = []
-        for q, v in zip(Q, V, strict=True):
-            piece = ruckig_piece(now, State(q, v, np.zeros_like(q)), t0, lim, "dodge",
-                                 self.bounds)
-            if piece is not None:
-                end = piece.sample(piece.t_end - piece.t_start)
-                stop = stop_from(end, piece.t_end, lim, self.bounds)
-                moves.append(Motion((piece, *stop.pieces)))
-        safe = self.safe_in_time(moves, t0, restore, 0.0)
-        return [m for m, ok in zip(moves, safe, strict=True) if ok]
+        for c0 in range(0, ESCAPE_TRIES, DODGE_CHUNK):
+            if c0 and past(deadline):
+                return
+            moves = []
+            for q, v in zip(Q[c0:c0 + DODGE_CHUNK], V[c0:c0 + DODGE_CHUNK], strict=True):
+                piece = ruckig_piece(now, State(q, v, np.zeros_like(q)), t0, lim, "dodge",
+                                     self.bounds)
+                if piece is not None:
+                    end = piece.sample(piece.t_end - piece.t_start)
+                    stop = stop_from(end, piece.t_end, lim, self.bounds)
+                    moves.append(Motion((piece, *stop.pieces)))
+            safe = self.safe_in_time(moves, t0, restore, 0.0)
+            yield from (m for m, ok in zip(moves, safe, strict=True) if ok)
 
     def hold_short(self, motion: Motion, t0: float, t_hit: float,
                    restore: Obstacles) -> Motion | None:
@@ -312,6 +352,11 @@ class Evader:
                 for step in DODGE_STEPS_M:
                     out.append(q + dq * min(step, DODGE_RAD / n))
         return np.array(out) if out else np.empty((0, len(q)))
+
+
+def past(deadline: float | None) -> bool:
+    """Whether the wall clock (``time.perf_counter()``) is past ``deadline`` (None: never)."""
+    return deadline is not None and time.perf_counter() >= deadline
 
 
 def _arm_points(world: World, q: Array) -> Array:

@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from chekhov.collision.path_check import exact_path_decision
-from chekhov.execute.evade import Evader, EvadeSettings
+from chekhov.execute.evade import Evader, EvadeSettings, past
 from chekhov.execute.interface import Command, Counters, ExecutorConfig, Observation, Reaction
 from chekhov.execute.motion import (
     Bounds,
@@ -78,6 +78,9 @@ class Executor:
         self._exact_has: Obstacles | None = None
         self._submit_wall = 0.0
         self._held = -1
+        self._deadline: float | None = None
+        self._search_again = False
+        self._resuming = False
         c = self.config
         self.evader = Evader(world, self.tracks, EvadeSettings(c.horizon_s, c.margin_m,
                                                                c.check_dt_s),
@@ -87,6 +90,8 @@ class Executor:
     def step(self, obs: Observation) -> Command:
         """Take one tick's observation; the command for the next tick (t + control_dt_s)."""
         wall0 = time.perf_counter()
+        budget = self.config.search_budget_s
+        self._deadline = None if budget is None else wall0 + budget
         self._submit_wall = 0.0
         self.immediate_motion = None
         t, dt = obs.t, self.config.control_dt_s
@@ -95,9 +100,12 @@ class Executor:
         if obs.goal is not None:
             self.goal = obs.goal
             self._disturbed("goal", t)
+        self._resuming = self._search_again   # this step's searches go on with the cut one
         self._check_kick(obs)
         if obs.obstacles is not None and obs.stamp is not None:
             self.tracks.update(obs.obstacles, obs.stamp)
+            self._monitor(t)
+        elif self._search_again:     # a search cut short by its budget goes on
             self._monitor(t)
         self._poll(t)
         if self._need is not None and self._pending is None:
@@ -175,19 +183,24 @@ class Executor:
     def _after_kick(self, start: State, t: float) -> Motion:
         """A kicked arm that cannot rejoin: a dodge (a stop could leave it in an obstacle's
         way), else its stop when that is safe in time, else the first exactly free escape
-        (:meth:`Evader.escapes <chekhov.execute.evade.Evader.escapes>`), else the stop."""
+        (:meth:`Evader.escapes <chekhov.execute.evade.Evader.escapes>`), else the stop — the
+        stop too when the search budget runs out first (the search goes on next tick)."""
         ev = self.evader
-        move = ev.dodge(start, t, self._seen) if self.tracks.tracks else None
+        move = ev.dodge(start, t, self._seen, self._deadline, self._resuming) \
+            if self.tracks.tracks else None
         if move is not None:
             self.counters.dodges += 1
             return move
         stop = stop_from(start, t, self.limits, self.bounds)
-        if not ev.safe_in_time([stop], t, self._seen, 0.0).all():
-            move = next((m for m in ev.escapes(start, t, self._seen) if self._free(m, t)),
-                        None)
-            if move is not None:
-                self.counters.dodges += 1
-                return move
+        if not past(self._deadline) and \
+                not ev.safe_in_time([stop], t, self._seen, 0.0).all():
+            for move in ev.escapes(start, t, self._seen, self._deadline):
+                if past(self._deadline):
+                    break
+                if self._free(move, t):
+                    self.counters.dodges += 1
+                    return move
+        self._search_again = bool(self.tracks.tracks) and (ev.cut_short or past(self._deadline))
         self.counters.safe_stops += 1
         return stop
 
@@ -222,9 +235,11 @@ class Executor:
                      self.evader.safe_in_time([b], t, self._seen, 0.0).all()), None)
 
     def _monitor(self, t: float) -> None:
-        """Check the rest of the motion against the predicted obstacles (a sensor frame)."""
+        """Check the rest of the motion against the predicted obstacles (a sensor frame, or
+        the tick after a search cut short)."""
         assert self.motion is not None
         c = self.config
+        self._search_again = False
         self._seen = predicted_obstacles(self.tracks, t, c.horizon_s, c.margin_m)
         self.world.fast.set_obstacles(self._seen)
         t_hit = self._first_conflict(self.motion, t)
@@ -240,7 +255,7 @@ class Executor:
         if self.motion.kind_at(t) in ("rest", "brake", "dodge"):
             lead = max(lead, EVADE_LEAD_S)       # a standing arm needs time to get away
         if t_hit - t <= lead + 2 * c.control_dt_s:
-            self._evade(t)
+            self._evade(t, t_hit)
         else:
             self._hold_short(t, t_hit)
 
@@ -267,10 +282,12 @@ class Executor:
             self._need = "obstacle"
         self._react(t1, ("obstacle",))
 
-    def _evade(self, t: float) -> None:
-        """The conflict is too near to wait for a plan: keep a dodge that still holds, else
-        brake along the path if that is free of the predicted motion, else dodge, else brake
-        anyway (a dodge gone unsafe: stop, if that is safer)."""
+    def _evade(self, t: float, t_hit: float) -> None:
+        """The conflict at ``t_hit`` (s) is too near to wait for a plan: keep a dodge that
+        still holds, else brake along the path if that is free of the predicted motion, else
+        dodge, else brake anyway (a dodge gone unsafe: stop, if that is safer) — unless the
+        dodge search was cut short by its budget and braking a tick later still stops short of
+        the conflict: then the motion stands while the search goes on."""
         assert self.motion is not None
         t_r = self._t_react(t)
         kind = self.motion.kind_at(t)
@@ -281,7 +298,8 @@ class Executor:
             "brake", "dodge") else None
         if brake is not None and self._safe([brake], t_r).all():
             self.counters.safe_stops += 1
-        elif self._dodge(t):
+        elif self._dodge(t) or (self._search_again and brake is not None and
+                                brake.t_end + 2 * self.config.control_dt_s < t_hit):
             return
         else:
             if brake is None and moving and kind == "dodge":
@@ -401,10 +419,12 @@ class Executor:
         assert self.motion is not None
         t_r = self._t_react(t)
         now = self.motion.sample(t_r)
-        move = self.evader.dodge(now, t_r, self._seen)
-        if move is None and self.evader.in_scene(now.q, self._seen):   # in the scene already
+        move = self.evader.dodge(now, t_r, self._seen, self._deadline, self._resuming)
+        if move is None and not self.evader.cut_short and \
+                self.evader.in_scene(now.q, self._seen):   # in the scene already
             move = self.evader.unstick(now, t_r, self._seen)
         if move is None:
+            self._search_again = self.evader.cut_short
             return False
         self._cancel()
         self._need = "obstacle"

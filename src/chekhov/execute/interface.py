@@ -36,6 +36,12 @@ class ExecutorConfig:
             new motion when it comes, and joins back onto it (a "lag", as after a kick).
             Measured on the charged clock (tabletop_pole and panda_cage, 6 episodes each,
             one run): reaction p95 40 ms at 10 ms of lead, 48-50 ms at 20, 60-108 ms at 30.
+        search_budget_s: s of wall-clock time a step may spend searching for a dodge or an
+            escape (checked between chunks of candidates, 1-4 ms each). Past it the search
+            stops, the arm brakes or stops, and the search goes on at the next tick: a step
+            that ran past its tick would leave the arm behind the motion it found, and its
+            next step searching again from there. None: no limit (the free clock, where
+            compute takes no time; then the search is deterministic).
         kick_tolerance_rad, kick_tolerance_rad_s: rad and rad/s, a measured position or
             velocity this far from the command is a kick (or a lag: the arm behind a step
             that ran past its tick).
@@ -53,6 +59,7 @@ class ExecutorConfig:
     horizon_s: float = 0.6
     margin_m: float = 0.04
     reaction_lead_s: float = 0.01
+    search_budget_s: float | None = 0.006
     kick_tolerance_rad: float = 1e-3
     kick_tolerance_rad_s: float = 1e-3
     check_dt_s: float = 0.01
