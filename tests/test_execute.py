@@ -589,6 +589,34 @@ def test_a_dodge_gone_unsafe_with_no_other_stops_when_stopping_is_safe(world, pl
     assert truth.collides(q1, 1.0)          # where the dodge ends: contact
 
 
+def test_after_a_step_over_its_tick_any_offset_is_a_lag_to_join_back(world, planner, limits):
+    """An arm 1e-4 rad/s off the motion is within the kick tolerance; but after a step that ran
+    past its tick it is a lagging arm (it followed the motion it had), joined back — commanding
+    the new motion from there would be a velocity step the evaluation flags."""
+    from chekhov.execute.executor import Executor
+    from chekhov.execute.interface import Command, Observation
+    from chekhov.execute.motion import Motion
+    from chekhov.execute.worker import InlineWorker
+    q0, goal = start_and_goal(world, 0, 0)
+    q1 = q0.copy()
+    q1[0] = np.clip(q1[0] + 0.6, world.robot.lower[0], world.robot.upper[0])
+    z = np.zeros_like(q0)
+    piece = ruckig_piece(State(q0, z, z), State(q1, z, z), 0.0, limits, "plan",
+                         Bounds(world.robot.lower, world.robot.upper))
+    assert piece is not None
+    seen = []
+    for wall in (0.001, 0.02):                  # within its tick, then over it
+        ex = Executor(world, InlineWorker(world, planner, CONFIG.executor.timing), goal,
+                      CONFIG.executor)
+        ex.motion = Motion((piece,))
+        s = ex.motion.sample(0.1)
+        ex._last = Command(0.1, s.q, s.qd, s.qdd, "plan")
+        ex.counters.step_wall_s.append(wall)
+        ex._check_kick(Observation(0.1, s.q, s.qd + 1e-4))
+        seen.append([r.kind for r in ex.reactions])
+    assert seen == [[], ["kick"]]
+
+
 def test_the_evaluation_sees_a_collision_and_a_velocity_jump(world, limits):
     """Not the executive's checks: a record driven straight through a sphere is a collision;
     a position jump without a kick is a limit violation."""

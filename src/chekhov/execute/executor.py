@@ -54,6 +54,13 @@ EVADE_LEAD_S = 0.5
 conflict (a replan may find no start outside the obstacles' sweep)."""
 
 
+LAG_TOLERANCE = 1e-9
+"""rad and rad/s: after a step that ran past its tick, the arm (which followed the motion it
+had meanwhile) is joined back onto the new motion when it is off it by more than this — not
+by the kick tolerances: a brake just begun differs by ~1e-4 rad/s after a tick, and commanding
+it from there was a velocity step (3% of an acceleration limit in a react run)."""
+
+
 class Executor:
     """Tracks a goal with the motion it commands, reacting to what each tick reports."""
 
@@ -160,8 +167,12 @@ class Executor:
         t = obs.t
         expected = self.motion.sample(t)
         c = self.config
-        if float(np.abs(obs.q - expected.q).max()) <= c.kick_tolerance_rad and \
-                float(np.abs(obs.qd - expected.qd).max()) <= c.kick_tolerance_rad_s:
+        walls = self.counters.step_wall_s
+        late = bool(walls) and walls[-1] > c.control_dt_s
+        tol_q, tol_qd = (LAG_TOLERANCE, LAG_TOLERANCE) if late else \
+            (c.kick_tolerance_rad, c.kick_tolerance_rad_s)
+        if float(np.abs(obs.q - expected.q).max()) <= tol_q and \
+                float(np.abs(obs.qd - expected.qd).max()) <= tol_qd:
             return
         self.reactions.append(Reaction("kick", t))
         start = State(np.asarray(obs.q, dtype=float), np.asarray(obs.qd, dtype=float), last.qdd)
