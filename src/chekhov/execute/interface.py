@@ -43,8 +43,9 @@ class ExecutorConfig:
             next step searching again from there. None: no limit (the free clock, where
             compute takes no time; then the search is deterministic).
         kick_tolerance_rad, kick_tolerance_rad_s: rad and rad/s, a measured position or
-            velocity this far from the command is a kick (or a lag: the arm behind a step
-            that ran past its tick).
+            velocity this far from the motion's is a kick (after a step that ran past its
+            tick, any offset beyond 1e-9 is: a lag, the arm behind the new motion —
+            :data:`~chekhov.execute.executor.LAG_TOLERANCE`).
         check_dt_s: s, the time step of the checks along a motion.
         rejoin_s: s, how far ahead on its motion a kicked arm rejoins it.
         join_offsets_s: s, where on a new plan's trajectory the join aims, tried in order.
