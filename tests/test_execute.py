@@ -458,6 +458,13 @@ def test_a_resting_arm_dodges_a_forearm_coming_at_it(world, limits):
     assert not any(truth.collides(q, float(t)) for q, t in zip(Q, ts, strict=True))
 
 
+def _seeded_evader(world, tracks, limits):
+    """An evader with the executive's settings and a fixed seed (the same targets each time)."""
+    c = CONFIG.executor
+    return Evader(world, tracks, EvadeSettings(c.horizon_s, c.margin_m, c.check_dt_s), limits,
+                  Bounds(world.robot.lower, world.robot.upper), seed=3)
+
+
 def test_the_dodge_is_the_nearest_target_whose_move_is_safe_sample_by_sample(world, limits):
     """The dodge search drops targets early (rest in the last window's sweep, coarse samples
     first, chunks): its answer must still be the nearest target whose Ruckig move is within
@@ -469,8 +476,7 @@ def test_the_dodge_is_the_nearest_target_whose_move_is_safe_sample_by_sample(wor
     bounds = Bounds(world.robot.lower, world.robot.upper)
 
     def evader():
-        return Evader(world, tracks, EvadeSettings(c.horizon_s, c.margin_m, c.check_dt_s),
-                      limits, bounds, seed=3)
+        return _seeded_evader(world, tracks, limits)
     z = np.zeros_like(q0)
     now = State(q0, z, z)
     move = evader().dodge(now, t0, {})
@@ -507,12 +513,9 @@ def test_a_dodge_search_cut_at_its_deadline_goes_on_to_the_same_answer(world, li
     reaches the dodge the whole search finds."""
     monkeypatch.setattr("chekhov.execute.evade.DODGE_CHUNK", 1)
     q0, _, tracks, t0 = _ball_at_the_elbow(world, 0.08)
-    c = CONFIG.executor
-    bounds = Bounds(world.robot.lower, world.robot.upper)
 
     def evader():
-        return Evader(world, tracks, EvadeSettings(c.horizon_s, c.margin_m, c.check_dt_s),
-                      limits, bounds, seed=3)
+        return _seeded_evader(world, tracks, limits)
     z = np.zeros_like(q0)
     now = State(q0, z, z)
     whole = evader().dodge(now, t0, {})
