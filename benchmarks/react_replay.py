@@ -2,6 +2,7 @@
 executive on the same disturbances. One JSON object per episode and repetition.
 
     python benchmarks/react_replay.py SCENE EPISODE [EPISODE ...] [--scripts FILE] [--reps N]
+        [--search-budget-ms MS|none]
 
 An episode's script (kick, goal change, forearm) is timed by an undisturbed run of the
 planner, whose wall time moves replies from tick to tick, so two ``chekhov react`` runs can
@@ -9,9 +10,12 @@ differ by a few ms in every script (the same seed). Here the scripts are made on
 ``--scripts`` (a pickle: load only files you made; written atomically), then replayed with
 whatever ``chekhov`` is imported — e.g. ``PYTHONPATH=/path/to/other/checkout/src``.
 
-Keys: scene, episode, rep, reached, t_reached_s, collision, first_contact_s, unavoidable,
-limit_violations, dodges, safe_stops, holds, replans, failures (plan failures by status),
-step_ms_max (the control step's own compute).
+``--search-budget-ms`` sets the executive's ``search_budget_s`` (``none``: no budget); the
+default is :class:`ExecutorConfig`'s.
+
+Keys: scene, episode, rep, search_budget_ms, reached, t_reached_s, collision, first_contact_s,
+unavoidable, limit_violations, dodges, safe_stops, holds, replans, failures (plan failures by
+status), step_ms_max (the control step's own compute).
 """
 
 from __future__ import annotations
@@ -20,12 +24,14 @@ import argparse
 import json
 import pickle
 from collections import Counter
+from dataclasses import replace
 from pathlib import Path
 
 from chekhov import World
 from chekhov.atomic import write_atomic
 from chekhov.errors import ChekhovError
 from chekhov.execute.benchmark import ReactConfig, executive_planner, run_one
+from chekhov.execute.interface import ExecutorConfig
 from chekhov.execute.script import EpisodeScript, make_script, start_and_goal
 
 try:
@@ -61,6 +67,19 @@ def scripts_for(world: World, episodes: list[int], config: ReactConfig,
     return kept
 
 
+def _budget_s(text: str) -> float | None:
+    """``--search-budget-ms``: a positive number of ms (returned in s), or ``none``."""
+    if text.lower() == "none":
+        return None
+    try:
+        ms = float(text)
+    except ValueError:
+        ms = -1.0
+    if not ms > 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a positive number of ms or 'none'")
+    return ms / 1000
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("scene")
@@ -68,12 +87,17 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--scripts", type=Path, default=None)
     ap.add_argument("--reps", type=int, default=1)
+    ap.add_argument("--search-budget-ms", type=_budget_s, dest="search_budget_s",
+                    default=ExecutorConfig().search_budget_s)
     args = ap.parse_args()
     try:
         world = World.load(args.scene)
     except ChekhovError as e:
         raise SystemExit(f"react_replay: scene {args.scene!r}: {e}") from e
     config = ReactConfig(episodes=max(args.episodes) + 1, seed=args.seed)
+    config = replace(config, executor=replace(config.executor,
+                                              search_budget_s=args.search_budget_s))
+    budget = config.executor.search_budget_s
     scripts = scripts_for(world, args.episodes, config, args.scripts)
     planner = executive_planner(config.planners[0], world)
     for i in args.episodes:
@@ -82,7 +106,9 @@ def main() -> None:
             r = scripted_episode(world, planner, script, config, t_plain)
             rec, check, c = r.record, r.check, r.record.counters
             print(json.dumps({
-                "scene": args.scene, "episode": i, "rep": rep, "reached": rec.reached,
+                "scene": args.scene, "episode": i, "rep": rep,
+                "search_budget_ms": None if budget is None else 1000 * budget,
+                "reached": rec.reached,
                 "t_reached_s": rec.t_reached, "collision": check.collision,
                 "first_contact_s": check.first_contact_s, "unavoidable": check.unavoidable,
                 "limit_violations": check.limit_violations, "dodges": c.dodges,
