@@ -11,8 +11,8 @@ from the state the motion will be in one planning budget later, and the reply is
 the motion there (no velocity or acceleration jump). When the conflict is nearer than that
 budget plus the time to stop, the arm brakes along its path at once and the plan starts where
 it stops. The searches for a dodge or an escape stop at a wall-clock budget per step
-(``search_budget_s``) and go on at the next tick, so that a step fits its tick. Units: s,
-rad, m.
+(``search_budget_s``) and go on at the next tick, so that a step ends within a few ticks.
+Units: s, rad, m.
 """
 
 from __future__ import annotations
