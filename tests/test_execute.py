@@ -3,6 +3,7 @@ reach their goal through kicks, goal changes and a forearm sweeping across, judg
 fact by the exact checker against the obstacles' true poses; and ``chekhov react``."""
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -209,16 +210,12 @@ def test_undisturbed_episode_reaches_the_goal_within_limits(world, planner, limi
     assert rec.counters.replans == 1 and not rec.reactions
 
 
-def test_an_arm_resting_in_the_scene_gets_out_and_reaches_its_goal(world, planner, limits):
-    """A stop after a kick can leave the arm in contact with the scene: no plan starts there
-    and every dodge starts in collision. The executive gets it out (exactly free within
-    Evader.unstick's time, judged at 1 ms steps by the exact checker) and reaches the goal."""
-    from chekhov.execute.evade import UNSTICK_S
+def _in_the_scene(world, q0):
+    """A configuration within the limits just past the first contact with the static scene
+    (exact checker) along a seeded random direction from q0 (K,) rad."""
     world.set_obstacles({})          # the static scene only (tests before may leave some)
-    q0, goal = start_and_goal(world, 0, 0)
     rng = np.random.default_rng(5)
-    stuck = None
-    for _ in range(400):             # just past the first contact along a random direction
+    for _ in range(400):
         d = rng.normal(size=q0.shape)
         d /= np.linalg.norm(d)
         hits = [s for s in np.linspace(0.0, 0.8, 161)[1:]
@@ -226,9 +223,17 @@ def test_an_arm_resting_in_the_scene_gets_out_and_reaches_its_goal(world, planne
         q = q0 + (hits[0] + 0.01) * d if hits else None
         if q is not None and world.robot.within_limits(q[None])[0] and \
                 not world.exact.is_valid(q):
-            stuck = q
-            break
-    assert stuck is not None
+            return q
+    raise AssertionError("no configuration in the scene found")
+
+
+def test_an_arm_resting_in_the_scene_gets_out_and_reaches_its_goal(world, planner, limits):
+    """A stop after a kick can leave the arm in contact with the scene: no plan starts there
+    and every dodge starts in collision. The executive gets it out (exactly free within
+    Evader.unstick's time, judged at 1 ms steps by the exact checker) and reaches the goal."""
+    from chekhov.execute.evade import UNSTICK_S
+    q0, goal = start_and_goal(world, 0, 0)
+    stuck = _in_the_scene(world, q0)
     rec = run_one(world, planner, EpisodeScript(0, stuck, goal, ""), 20.0, CONFIG)
     assert rec.reached and _meets(world, rec.q[-1], goal)
     assert rec.counters.dodges >= 1
@@ -239,6 +244,36 @@ def test_an_arm_resting_in_the_scene_gets_out_and_reaches_its_goal(world, planne
     free = exact_path_decision(world.fast, world.exact, Q[out + 1:], 1)
     assert free.valid
     assert evaluate_episode(world, rec, limits, 0.1).limit_violations == 0
+
+
+def test_a_kicked_arm_in_the_scene_gets_out_though_every_search_is_cut(world, planner):
+    """A kick that leaves the arm in the static scene while an obstacle is tracked, and a
+    search budget that every search overruns: no dodge can be safe from there (each starts in
+    collision), so none is searched for and the way out (Evader.unstick) is taken at once.
+    With the dodge search cut at every step, a replayed kitchen episode's arm had stood in the
+    scene for ~1000 ticks."""
+    import time
+
+    from chekhov.execute.evade import UNSTICK_S
+    from chekhov.execute.executor import Executor
+    from chekhov.execute.obstacles import obstacles_at
+    from chekhov.execute.worker import InlineWorker
+    q0, goal = start_and_goal(world, 0, 0)
+    stuck = _in_the_scene(world, q0)
+    far = np.array([0.0, -2.5, 1.0])          # m: tracked, nowhere near the arm
+    ball = MovingObstacle("ball", Shape("sphere", (0.05,)), np.eye(3), far,
+                          far + np.array([0.3, 0.0, 0.0]), 0.0, 0.5)
+    ex = Executor(world, InlineWorker(world, planner, CONFIG.executor.timing), goal,
+                  replace(CONFIG.executor, search_budget_s=1e-9))
+    t0 = 0.5
+    for stamp in (t0 - 1 / 30, t0):
+        ex.tracks.update(obstacles_at((ball,), stamp), stamp)
+    ex._deadline = time.perf_counter()           # the step's budget: spent
+    z = np.zeros_like(q0)
+    move = ex._after_kick(State(stuck, z, z), t0)
+    assert move.kind_at(t0 + DT) == "dodge" and ex.counters.safe_stops == 0
+    _, Q = move.positions(t0, t0 + UNSTICK_S + DT, 1e-3)
+    assert any(world.exact.is_valid(q) for q in Q)
 
 
 def test_a_kick_is_rejoined_at_the_next_tick(world, planner, limits, rng):

@@ -223,6 +223,10 @@ class Evader:
                 tried[margin][chunk] = True
         return None
 
+    def forget_cut(self) -> None:
+        """Drop a dodge search cut short (the next search starts afresh)."""
+        self._cut = None
+
     def in_scene(self, q: Array, restore: Obstacles) -> bool:
         """Whether configuration q (K,) rad is in collision with the static scene (the fast
         checker, no dynamic obstacles; ``restore``'s put back after)."""

@@ -194,13 +194,16 @@ class Executor:
         self._need = "kick"
 
     def _after_kick(self, start: State, t: float) -> Motion:
-        """A kicked arm that cannot rejoin: a dodge (a stop could leave it in an obstacle's
-        way), else its stop when that is safe in time, else the first exactly free escape
-        (:meth:`Evader.escapes <chekhov.execute.evade.Evader.escapes>`), else the stop — the
-        stop too when the search budget runs out first (the search goes on next tick)."""
+        """A kicked arm that cannot rejoin: out of the static scene when it is in it, else a
+        dodge (a stop could leave it in an obstacle's way), else its stop when that is safe in
+        time, else the first exactly free escape (:meth:`Evader.escapes
+        <chekhov.execute.evade.Evader.escapes>`), else the stop — the stop too when the
+        search budget runs out first (the search goes on next tick)."""
         ev = self.evader
-        move = ev.dodge(start, t, self._seen, self._deadline, self._resuming) \
-            if self.tracks.tracks else None
+        if self.tracks.tracks:
+            move = self._out_of_way(start, t)
+        else:
+            move = ev.unstick(start, t, self._seen) if ev.in_scene(start.q, self._seen) else None
         if move is not None:
             self.counters.dodges += 1
             return move
@@ -432,10 +435,7 @@ class Executor:
         assert self.motion is not None
         t_r = self._t_react(t)
         now = self.motion.sample(t_r)
-        move = self.evader.dodge(now, t_r, self._seen, self._deadline, self._resuming)
-        if move is None and not self.evader.cut_short and \
-                self.evader.in_scene(now.q, self._seen):   # in the scene already
-            move = self.evader.unstick(now, t_r, self._seen)
+        move = self._out_of_way(now, t_r)
         if move is None:
             self._search_again = self.evader.cut_short
             return False
@@ -445,6 +445,18 @@ class Executor:
         self.counters.dodges += 1
         self._react(t_r)
         return True
+
+    def _out_of_way(self, now: State, t0: float) -> Motion | None:
+        """From ``now`` at clock time t0 (s): the way out of the static scene when the arm is
+        in it already (:meth:`Evader.unstick <chekhov.execute.evade.Evader.unstick>`; no
+        dodge can be safe then, each starting in collision, so no search is spent on one),
+        else the dodge search's move (resumed when this step resumes one); None when there is
+        none (the search may have been cut short: ``evader.cut_short``)."""
+        ev = self.evader
+        if ev.in_scene(now.q, self._seen):
+            ev.forget_cut()
+            return ev.unstick(now, t0, self._seen)
+        return ev.dodge(now, t0, self._seen, self._deadline, self._resuming)
 
     def _safe(self, motions: list[Motion], t0: float) -> NDArray[np.bool_]:
         """:meth:`Evader.safe_in_time <chekhov.execute.evade.Evader.safe_in_time>`."""
