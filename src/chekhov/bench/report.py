@@ -143,8 +143,10 @@ def _how_produced(db_path: Path, stats: Stats, experiments: list[dict[str, Any]]
           f"{e['timelimit']:g} s, motion-check resolution {e['resolution']:g} rad, "
           f"{e['version']}, host {e['hostname']} ({e['cpuinfo']}), started {e['date']}, "
           f"{e['totaltime']:.0f} s of planning and checking in all." for e in experiments]
-    L.append("\nTimes are wall-clock seconds of `plan()` (IK, seeding, optimisation and the "
-             "planner's own validation included; the runner's exact check excluded), measured "
+    L.append("\nTimes are wall-clock seconds of `plan()` up to its certified answer (IK, "
+             "seeding, optimisation and the planner's own validation included; the timing of "
+             "the answer that follows, `info[\"time_parameterize_s\"]`, and the runner's exact "
+             "check excluded), measured "
              "with several runs in parallel on a shared machine: compare ratios rather than "
              "absolute values. A failure is any run without a collision-free path "
              "(no path, or a path the exact check rejects), as in the paper.\n")
