@@ -43,10 +43,11 @@ class ExecutorConfig:
             next step searching again from there. None: no limit (the free clock, where
             compute takes no time; then the search is deterministic). Measured on the same
             scripts (``benchmarks/react_replay.py``, 31 episodes of 6 scenes chosen for their
-            conflicts, twice each, charged clock): collision episodes 30 (12 avoidable) at
-            6 ms, 22 (4) at 15 ms, 23 (3) with none; an episode's longest step 20 / 24 / 47 ms
-            (median), 70 ms at most at 15 ms, 145 with none. A search cut short brakes the
-            arm, and from a braking arm fewer dodges are safe.
+            conflicts, charged clock), collision episodes (avoidable) per run: 30 (12) of 62
+            at 6 ms, 11 (6) of 31 at 10 ms, 33 (6) of 93 at 15 ms, 7 (1) of 31 at 25 ms,
+            32 (4) of 93 with none; an episode's longest step at most 95 ms at 15 ms, 145
+            with none. A search cut short brakes the arm, and from a braking arm fewer dodges
+            are safe.
         kick_tolerance_rad, kick_tolerance_rad_s: rad and rad/s, a measured position or
             velocity this far from the motion's is a kick (after a step that ran past its
             tick, any offset beyond 1e-9 is: a lag, the arm behind the new motion —
