@@ -200,10 +200,7 @@ class Executor:
         <chekhov.execute.evade.Evader.escapes>`), else the stop — the stop too when the
         search budget runs out first (the search goes on next tick)."""
         ev = self.evader
-        if self.tracks.tracks:
-            move = self._out_of_way(start, t)
-        else:
-            move = ev.unstick(start, t, self._seen) if ev.in_scene(start.q, self._seen) else None
+        move = self._out_of_way(start, t, search=bool(self.tracks.tracks))
         if move is not None:
             self.counters.dodges += 1
             return move
@@ -446,16 +443,18 @@ class Executor:
         self._react(t_r)
         return True
 
-    def _out_of_way(self, now: State, t0: float) -> Motion | None:
+    def _out_of_way(self, now: State, t0: float, *, search: bool = True) -> Motion | None:
         """From ``now`` at clock time t0 (s): the way out of the static scene when the arm is
         in it already (:meth:`Evader.unstick <chekhov.execute.evade.Evader.unstick>`; no
         dodge can be safe then, each starting in collision, so no search is spent on one),
-        else the dodge search's move (resumed when this step resumes one); None when there is
-        none (the search may have been cut short: ``evader.cut_short``)."""
+        else, with ``search``, the dodge search's move (resumed when this step resumes one);
+        None when there is none (the search may have been cut short: ``evader.cut_short``)."""
         ev = self.evader
         if ev.in_scene(now.q, self._seen):
             ev.forget_cut()
             return ev.unstick(now, t0, self._seen)
+        if not search:
+            return None
         return ev.dodge(now, t0, self._seen, self._deadline, self._resuming)
 
     def _safe(self, motions: list[Motion], t0: float) -> NDArray[np.bool_]:
