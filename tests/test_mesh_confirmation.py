@@ -171,3 +171,36 @@ def test_every_panda_pregrasp_has_a_solution_both_checkers_call_free(scene):
         fast, exact = w.fast.valid(Q), w.exact.valid(Q)
         assert not np.any(fast & ~exact), (name, label)
         assert np.any(fast & exact), (name, label, fast, exact)
+
+
+def test_mesh_spheres_inner_balls_lie_inside_the_hull_and_change_no_decision(panda_world):
+    """A mesh sphere's inner ball (``packed.exact_geometry``) lies inside the convex hull of one
+    of the mesh's parts — checked by Delaunay point location, not by the facet planes that
+    sized it — so a hit it proves is one the hull confirmation would prove: the fast checker
+    decides the same with the balls as with them set to 0, on random and near-contact
+    configurations."""
+    from scipy.spatial import Delaunay
+
+    from chekhov.collision import validity
+
+    w = panda_world
+    pk = w.fast.packed
+    geo, sph, grp = pk.geometry, pk.spheres, pk.groups
+    on_mesh = np.zeros(len(sph.radius), dtype=bool)
+    rng = np.random.default_rng(17)
+    for g in np.flatnonzero(geo.kind == HULL):
+        on_mesh[grp.start[g]:grp.start[g + 1]] = True
+        tri = [Delaunay(geo.verts[geo.vert_start[k]:geo.vert_start[k + 1]])
+               for k in range(geo.part_start[g], geo.part_start[g + 1])]
+        for s in range(grp.start[g], grp.start[g + 1]):
+            u = rng.normal(size=(300, 3))
+            ball = sph.centre[s] + sph.inner[s] * u / np.linalg.norm(u, axis=1)[:, None]
+            x = (ball - geo.p[g]) @ geo.R[g]          # the mesh's frame
+            assert any(np.all(t.find_simplex(x, tol=1e-9) >= 0) for t in tri), (g, s)
+    assert on_mesh.sum() >= 60 and np.mean(sph.inner[on_mesh] > 0) >= 0.8
+    without = pk._replace(spheres=sph._replace(inner=np.where(on_mesh, 0.0, sph.inner)))
+    free, past = _near_contact(w, np.random.default_rng(19), 40)
+    Q = np.vstack([w.robot.sample_uniform(rng, 3000), free, past])
+    with_balls = validity.valid_batch(Q, pk)
+    assert (~with_balls).sum() >= 300
+    assert np.array_equal(with_balls, validity.valid_batch(Q, without))

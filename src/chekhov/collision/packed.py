@@ -29,6 +29,7 @@ from chekhov.collision.primitives import (
     cluster_primitives,
     fixed_points,
     geometry_primitives,
+    hull_depth,
     hull_parts,
     pack_primitives,
     shape_primitive,
@@ -49,6 +50,8 @@ certificate is an exact support-function bound, so this only has to absorb round
 exact checker's own tolerances (coal's GJK: about 1e-6 m). The spheres' padding (1-2 mm)
 would call every configuration within it colliding: a third of those within 5 mm of contact
 (measured with benchmarks/collision.py on the near-contact configurations)."""
+HULL_DEPTH_SLACK = 1e-6
+"""m taken off a mesh sphere's inner radius: qhull's facet planes are exact to rounding only."""
 GRID_SAMPLES = 4000
 """Random configurations whose spheres size the grids' box (the arm's reach); the first 2000
 also rank the groups for :attr:`Grids.order`."""
@@ -420,7 +423,10 @@ def _surface_grids(lo: Array, hi: Array, h: float, sets: dict[tuple[int, ...], i
 def exact_geometry(robot: Robot, geoms: list[int], sp: SphereModel
                    ) -> tuple[GroupGeometry, Array]:
     """The covered geometry of each sphere group in its joint's frame (:class:`GroupGeometry`)
-    and each sphere's inner radius (m; 0 for a mesh: the inner ball tests are for solids).
+    and each sphere's inner radius (m): the ball about its centre inside a primitive, or for a
+    mesh inside the convex hull of one of its parts (:func:`hull_parts`). The fast checker
+    confirms a mesh group's hits on those hulls, so an inner ball touching something decides
+    what the confirmation would decide, without it (0 where the centre is outside).
 
     pad: :data:`CONFIRM_PAD`, or the spheres' padding when smaller."""
     G = len(geoms)
@@ -445,6 +451,9 @@ def exact_geometry(robot: Robot, geoms: list[int], sp: SphereModel
             kind[i], size[i] = codes.SPHERE, (g.radius, 0.0, 0.0)
         elif hasattr(g, "num_tris"):
             kind[i], parts[i] = codes.HULL, hull_parts(g)
+            for s in np.flatnonzero(sp.geometries == gi):
+                x = R[i].T @ (sp.centers[s] - p[i])   # the mesh's frame
+                rin[s] = max(0.0, max(hull_depth(v, x) for v in parts[i]) - HULL_DEPTH_SLACK)
             continue
         else:
             parts[i] = []

@@ -122,6 +122,17 @@ def support_points(pts: Array) -> Array:
     return np.array(pts[keep], dtype=float)
 
 
+def hull_depth(pts: Array, x: Array) -> float:
+    """How deep point x (3,) lies inside the convex hull of pts (n, 3), same frame (m): the
+    distance from x to the hull's nearest facet plane, so the ball of that radius about x is
+    inside the hull; 0 outside it, or when qhull cannot build the hull (a flat or tiny set)."""
+    try:
+        eq = ConvexHull(pts).equations   # rows (n, offset): n·y + offset <= 0 inside
+    except (QhullError, ValueError):
+        return 0.0
+    return max(0.0, float(-np.max(eq[:, :3] @ x + eq[:, 3])))
+
+
 def fixed_points(prims: list[Primitive]
                  ) -> tuple[NDArray[np.int64], NDArray[np.int64], Array, Array]:
     """What the fast checker confirms a sphere hit on fixed part i against: (kind (F,):
