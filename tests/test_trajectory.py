@@ -21,7 +21,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from chekhov import Goal, JointTrajectory, TimingConfig, TrajectoryError, time_parameterize
+from chekhov import (
+    Goal,
+    JointTrajectory,
+    TimingConfig,
+    TrajectoryError,
+    World,
+    time_parameterize,
+)
 from chekhov.planners.registry import make_planner
 from chekhov.roadmap.build import build_roadmap
 from chekhov.roadmap.config import RoadmapConfig
@@ -359,3 +366,72 @@ def test_an_answer_is_not_timed_when_that_would_break_the_time_limit(world_of):
     planner.timing = None
     r = planner.plan(q0, goal, 2.0)
     assert r.success and r.trajectory is None and "timing_error" not in r.info
+
+
+def _corner_path(world, rng):
+    """A free right-angled corner path q0 → qc → q1 (legs 1 rad)."""
+    while True:
+        q0 = world.robot.sample_uniform(rng, 1)[0]
+        u, v = np.linalg.qr(rng.normal(size=(world.robot.dof, 2)))[0].T
+        path = np.array([q0, q0 + u, q0 + u + v])
+        if world.robot.within_limits(path).all() and world.exact.path_valid(path, substeps=100):
+            return path
+
+
+def _arc_obstacle(world, path, Q, off):
+    """(centre (3,), radius) m of a sphere that the robot touches at the arc's middle (the
+    knot off the polyline ``path`` nearest its corner, where it is farthest from it: the
+    obstacle lies in a sphere's inner ball there) and that every sphere of the robot along
+    the polyline clears; None when no sphere gives one 4 mm clear."""
+    q_arc = Q[np.argmin(np.where(off, np.linalg.norm(Q - path[1], axis=1), np.inf))]
+    along = np.linspace(0, 1, 200)[:, None]
+    poly = np.concatenate([path[0] + along * (path[1] - path[0]),
+                           path[1] + along * (path[2] - path[1])])
+    sph = world.fast.packed.spheres
+    C_arc = world.fast.sphere_centers(q_arc)
+    C_poly = np.stack([world.fast.sphere_centers(q) for q in poly])       # (M, S, 3)
+    clear = np.array([(np.linalg.norm(C_poly - c, axis=2) - sph.radius).min() for c in C_arc])
+    s = int(np.argmax(np.where(sph.inner > 0, clear, -np.inf)))
+    return (C_arc[s], min(clear[s] / 2, sph.inner[s])) if clear[s] > 0.004 else None
+
+
+def test_only_the_rounded_corners_are_rechecked_and_an_obstacle_on_one_is_found():
+    """timed_trajectory re-checks the chords that leave the certified polyline — every knot
+    off it, by projection onto each segment here, is in a run — and not the straight parts;
+    an obstacle placed on a corner's arc (inside a sphere's inner ball there, clear of every
+    sphere along the polyline, so the polyline stays free) makes it fall back to ruckig."""
+    from chekhov.planners.timed import off_polyline_runs, timed_trajectory
+    from chekhov.scene.model import Shape
+
+    config = TimingConfig(blend_deviation_rad=0.3)
+    world = World.load("tabletop_pole")
+    rng = np.random.default_rng(23)
+    found = 0
+    for _ in range(20):
+        path = _corner_path(world, rng)
+        timed = timed_trajectory(world, path, config)
+        assert timed.method == "toppra"
+        Q = timed.trajectory.positions
+        a, d = path[:-1], np.diff(path, axis=0)
+        t = np.clip(np.einsum("nsk,sk->ns", Q[:, None] - a, d) / (d * d).sum(1), 0, 1)
+        off = np.linalg.norm(Q[:, None] - (a + t[..., None] * d), axis=2).min(axis=1) > 1e-9
+        in_run = np.zeros(len(Q), dtype=bool)
+        for lo, hi in off_polyline_runs(Q, path):
+            in_run[lo:hi + 1] = True
+        assert off.sum() >= 5 and np.all(in_run[off])
+        assert in_run.sum() <= 0.8 * len(Q)
+        obstacle = _arc_obstacle(world, path, Q, off)
+        if obstacle is None:
+            continue
+        T = np.eye(4)
+        T[:3, 3] = obstacle[0]
+        world.set_obstacles({"on_the_arc": (Shape("sphere", (obstacle[1],)), T)})
+        assert world.exact.path_valid(path, substeps=100)
+        assert not world.exact.valid(Q).all()
+        assert timed_trajectory(world, path, config).method == "ruckig"
+        world.set_obstacles({})
+        found += 1
+    assert found >= 3, found
+    # two knots on the polyline but on different segments: their chord cuts the corner
+    cut = np.array([path[0], (path[0] + path[1]) / 2, (path[1] + path[2]) / 2, path[2]])
+    assert off_polyline_runs(cut, path) == [(1, 2)]

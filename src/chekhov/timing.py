@@ -203,18 +203,28 @@ def limit_ratio(traj: JointTrajectory, limits: Limits) -> float:
 
 def polyline_deviation(Q: Array, P: Array) -> float:
     """Largest distance (rad) from a configuration of Q (N, K) to the polyline P (T, K)."""
+    return float(polyline_offsets(Q, P)[1].max(initial=0.0))
+
+
+def polyline_offsets(Q: Array, P: Array) -> tuple[NDArray[np.int64], Array]:
+    """(segment (N,), distance (N,) rad): for each configuration of Q (N, K), the segment of
+    the polyline P (T, K) nearest it (P[s] → P[s + 1]; the first of equals; 0 for one
+    waypoint) and its distance from it."""
     Q, P = np.atleast_2d(Q), np.atleast_2d(P)
     if len(P) == 1:
-        return float(np.linalg.norm(Q - P[0], axis=1).max())
+        return np.zeros(len(Q), dtype=np.int64), np.linalg.norm(Q - P[0], axis=1)
     a, d = P[:-1], np.diff(P, axis=0)                              # (S, K)
     dd = np.maximum(np.einsum("sk,sk->s", d, d), 1e-300)
+    seg = np.zeros(len(Q), dtype=np.int64)
     best = np.full(len(Q), np.inf)
     for i in range(0, len(Q), 512):                                # bounded memory
         q = Q[i:i + 512]
         t = np.clip(np.einsum("nsk,sk->ns", q[:, None, :] - a[None], d) / dd, 0.0, 1.0)
         gap = q[:, None, :] - (a[None] + t[..., None] * d[None])   # (n, S, K)
-        best[i:i + 512] = np.sqrt(np.einsum("nsk,nsk->ns", gap, gap).min(axis=1))
-    return float(best.max())
+        g2 = np.einsum("nsk,nsk->ns", gap, gap)
+        seg[i:i + 512] = np.argmin(g2, axis=1)
+        best[i:i + 512] = np.sqrt(g2.min(axis=1))
+    return seg, best
 
 
 def _distinct(P: Array) -> Array:
