@@ -45,7 +45,8 @@ class ExecutorConfig:
             scripts (``benchmarks/react_replay.py``, 31 episodes of 6 scenes chosen for their
             conflicts, charged clock), collision episodes (avoidable) per run: 30 (12) of 62
             at 6 ms, 11 (6) of 31 at 10 ms, 33 (6) of 93 at 15 ms, 7 (1) of 31 at 25 ms,
-            32 (4) of 93 with none; an episode's longest step at most 95 ms at 15 ms, 145
+            32 (4) of 93 with none; three later passes of 15 against 25 ms: 34 (6) and
+            35 (10) of 93; an episode's longest step at most 95 ms at 15 ms, 145
             with none. A search cut short brakes the arm, and from a braking arm fewer dodges
             are safe.
         kick_tolerance_rad, kick_tolerance_rad_s: rad and rad/s, a measured position or
