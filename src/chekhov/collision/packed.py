@@ -451,9 +451,10 @@ def exact_geometry(robot: Robot, geoms: list[int], sp: SphereModel
             kind[i], size[i] = codes.SPHERE, (g.radius, 0.0, 0.0)
         elif hasattr(g, "num_tris"):
             kind[i], parts[i] = codes.HULL, hull_parts(g)
-            for s in np.flatnonzero(sp.geometries == gi):
-                x = R[i].T @ (sp.centers[s] - p[i])   # the mesh's frame
-                rin[s] = max(0.0, max(hull_depth(v, x) for v in parts[i]) - HULL_DEPTH_SLACK)
+            mine = np.flatnonzero(sp.geometries == gi)
+            X = (sp.centers[mine] - p[i]) @ R[i]       # the mesh's frame
+            depth = np.max([hull_depth(v, X) for v in parts[i]], axis=0)
+            rin[mine] = np.maximum(0.0, depth - HULL_DEPTH_SLACK)
             continue
         else:
             parts[i] = []

@@ -122,15 +122,16 @@ def support_points(pts: Array) -> Array:
     return np.array(pts[keep], dtype=float)
 
 
-def hull_depth(pts: Array, x: Array) -> float:
-    """How deep point x (3,) lies inside the convex hull of pts (n, 3), same frame (m): the
-    distance from x to the hull's nearest facet plane, so the ball of that radius about x is
-    inside the hull; 0 outside it, or when qhull cannot build the hull (a flat or tiny set)."""
+def hull_depth(pts: Array, X: Array) -> Array:
+    """How deep each point of X (n, 3) lies inside the convex hull of pts (m, 3), same frame
+    (m): the distance to the hull's nearest facet plane, so the ball of that radius about the
+    point is inside the hull; 0 outside it, or when qhull cannot build the hull (a flat or
+    tiny set). One hull for all the points."""
     try:
         eq = ConvexHull(pts).equations   # rows (n, offset): n·y + offset <= 0 inside
     except (QhullError, ValueError):
-        return 0.0
-    return max(0.0, float(-np.max(eq[:, :3] @ x + eq[:, 3])))
+        return np.zeros(len(X))
+    return np.maximum(0.0, -np.max(X @ eq[:, :3].T + eq[:, 3], axis=1))
 
 
 def fixed_points(prims: list[Primitive]

@@ -227,7 +227,7 @@ class RoadmapTrajOpt(PlannerBase):
             goal = self._seed_goal(run, seed)
             if goal is not None:
                 self._optimise(run, seed, Stage.OPTIMISE, stop, _KINDS[seed_from], goal=goal,
-                               retry=goal.is_pose)
+                               retry=True)
 
     def _more_routes(self, run: AnytimeRun, seed: Array, stop: float) -> Array:
         """Routes to up to ``goal_routes`` goal IK solutions (the roadmap's validity cache
