@@ -260,3 +260,32 @@ def test_within_cuts_the_time_limit_only_when_shorter():
     assert cfg.within(5.0) is cfg
     assert cfg.within(0.5).time_limit_s == 0.5
     assert cfg.within(0.5).substeps == cfg.substeps
+
+
+def test_a_run_longer_than_its_bound_is_abandoned_unvalidated(pole):
+    """``abandon_above_rad``: pushed off the pole, a straight line's trajectory grows longer
+    than the line. Bounded by the line's own length, a run that takes ABANDON_AFTER_STEPS
+    accepted steps stops there as "abandoned" — no success, no validation, longer than the
+    bound, in fewer iterations than the run without a bound; one that converges sooner is the
+    unbounded run. With no bound, or one above the unbounded run's length, every run is the
+    unbounded one, iterate for iterate."""
+    from chekhov.trajopt.solver import ABANDON_AFTER_STEPS
+    abandoned = 0
+    for q0, q1, seed in _pole_crossing_lines(pole, 4):
+        prob = build_trajopt(pole, q0, Goal.configuration(q1), seed)
+        full = solve_trajopt(prob)
+        assert path_length(full.trajectory) > path_length(seed)   # pushed out: longer
+        for bound in (np.inf, 2.0 * path_length(full.trajectory)):
+            same = solve_trajopt(prob, abandon_above_rad=bound)
+            assert same.status == full.status and same.iterations == full.iterations
+            np.testing.assert_array_equal(same.trajectory, full.trajectory)
+        cut = solve_trajopt(prob, abandon_above_rad=path_length(seed))
+        if cut.status != "abandoned":   # converged within fewer accepted steps
+            assert cut.iterations == full.iterations
+            np.testing.assert_array_equal(cut.trajectory, full.trajectory)
+            continue
+        abandoned += 1
+        assert not cut.success and cut.valid is None and cut.certificate is None
+        assert path_length(cut.trajectory) > path_length(seed)
+        assert ABANDON_AFTER_STEPS <= cut.iterations < full.iterations
+    assert abandoned >= 1

@@ -40,7 +40,8 @@ class RunRecord:
         seed_time_s: s, time of the seed stage (``timing_s["seed"]``); nan without one.
         seed_found: the seed stage produced a path; None for planners without one.
         trajopt_status: TrajOpt's own status ("converged", "iteration_limit", "exact_clear",
-            "infeasible", "collision"); None when TrajOpt did not run.
+            "infeasible", "collision", "timeout", or "abandoned": stopped as longer than the
+            answer so far, not a rejection); None when TrajOpt did not run.
         fallback_to_seed: the planner returned its (exactly checked) seed, TrajOpt's
             trajectory rejected (Roadmap+TrajOpt); None when no TrajOpt stage ran
             (:func:`chekhov.bench.worker.fell_back_to_seed`).

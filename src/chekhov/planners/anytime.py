@@ -77,6 +77,11 @@ class AnytimeRun:
         self._candidate = None   # longer than the new answer
         return True
 
+    @property
+    def shortest_rad(self) -> float:
+        """rad: the length an offer must beat (inf: none yet)."""
+        return self._shortest()
+
     def _shortest(self) -> float:
         """rad: the shortest of the best solution and the waiting candidate (inf: none)."""
         best = self.best

@@ -22,8 +22,9 @@ class PlanStatus(StrEnum):
     The query: ``INVALID_START`` / ``INVALID_GOAL`` (an end in collision), ``NO_IK`` (no
     collision-free IK solution of the goal pose). The search: ``NO_CONNECTION`` (the roadmap
     could not connect the start or goal), ``NO_PATH`` (dynamic obstacles cut every route),
-    ``INFEASIBLE`` (TrajOpt could not meet its constraints), ``COLLISION`` (the answer failed
-    the exact check), ``BAD_PROBLEM`` (the optimisation problem could not be built),
+    ``INFEASIBLE`` (TrajOpt could not meet its constraints), ``ABANDONED`` (an improvement
+    stage stopped early: it was not going to beat the answer so far), ``COLLISION`` (the
+    answer failed the exact check), ``BAD_PROBLEM`` (the optimisation problem could not be built),
     ``TIMEOUT``. The certification refused the planner's answer (``planners/certify.py``):
     ``BAD_PATH``, ``START_MISMATCH``, ``JOINT_LIMITS``, ``GOAL_UNMET`` (and ``COLLISION``,
     ``TIMEOUT``)."""
@@ -35,6 +36,7 @@ class PlanStatus(StrEnum):
     NO_CONNECTION = "no_connection"
     NO_PATH = "no_path"
     INFEASIBLE = "infeasible"
+    ABANDONED = "abandoned"
     COLLISION = "collision"
     BAD_PROBLEM = "bad_problem"
     TIMEOUT = "timeout"

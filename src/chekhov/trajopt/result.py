@@ -23,8 +23,9 @@ class TrajOptResult:
             sphere model's clearance was short and the validation passed, see
             ``TrajOptConfig.accept_exact_clear``), "infeasible" (constraints still violated
             after the last penalty increase), "collision" (the validation found a collision:
-            never returned as a success) or "timeout" (the time limit passed before the
-            validation decided).
+            never returned as a success), "timeout" (the time limit passed before the
+            validation decided) or "abandoned" (longer than the caller's answer so far, see
+            ``solve_trajopt``'s ``abandon_above_rad``).
         success: status is one of the successes above (the validation, where on, passed).
         valid: result of the validation (None when validation is "none" or ran out of time).
         certificate: the validation's proof that this trajectory is exactly collision-free

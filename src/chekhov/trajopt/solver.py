@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 
 from chekhov.collision.path_check import PathCertificate, PathDecision, exact_path_decision
 from chekhov.errors import DeadlineError
+from chekhov.paths import path_length
 from chekhov.trajopt.problem import Evaluation, TrajOptProblem
 from chekhov.trajopt.qp import TrajOptQP, term_counts
 from chekhov.trajopt.result import TrajOptResult
@@ -28,6 +29,11 @@ Array = NDArray[np.float64]
 
 
 SUCCESS = frozenset({"converged", "iteration_limit", "exact_clear"})
+
+ABANDON_AFTER_STEPS = 2
+"""Accepted steps before ``solve_trajopt``'s ``abandon_above_rad`` is looked at: the first step
+from a seed is often the longest (the collision terms push the path off the obstacles it
+hugs), the second shows where the run is heading (see ``RoadmapTrajOptConfig.abandon_ratio``)."""
 
 FIRST_STEP_S = 2.5e-3
 """s: expected cost of the first SQP step (OSQP's setup and factorisation, one ADMM solve, one
@@ -44,7 +50,8 @@ class _SQPState:
         mu: the penalty coefficient. trust: the trust box's half-width, rad.
         deadline: ``time.perf_counter()`` value, s. step_s: s, expected cost of the next step.
         timing: s per phase (collision, linearise, qp, validate, …).
-        converged / out_of_budget: why the current penalty's loop ended.
+        converged / out_of_budget / abandoned: why the current penalty's loop ended.
+        accepted: steps accepted. abandon_above: rad, the length that abandons the run.
     """
 
     x: Array
@@ -60,15 +67,22 @@ class _SQPState:
     rebuilds: int = 0
     converged: bool = False
     out_of_budget: bool = False
+    accepted: int = 0
+    abandon_above: float = math.inf
+    abandoned: bool = False
 
 
-def solve_trajopt(problem: TrajOptProblem, deadline: float = math.inf) -> TrajOptResult:
+def solve_trajopt(problem: TrajOptProblem, deadline: float = math.inf, *,
+                  abandon_above_rad: float = math.inf) -> TrajOptResult:
     """Optimise the problem's seed; validate the result as ``config.validate`` says.
 
     A result that fails the validation gets status "collision" and ``success`` False. The
     optimisation and validation end by ``config.time_limit_s`` after the call or by
     ``deadline`` (a ``time.perf_counter()`` value, s: a planner's query deadline), whichever
-    comes first.
+    comes first. ``abandon_above_rad``: an anytime caller's answer so far (joint-space
+    length, rad); once the trajectory is longer than that after
+    :data:`ABANDON_AFTER_STEPS` accepted steps, the run stops with status "abandoned" (not a
+    success, not validated).
     """
     cfg = problem.config
     t_start = time.perf_counter()
@@ -83,7 +97,7 @@ def solve_trajopt(problem: TrajOptProblem, deadline: float = math.inf) -> TrajOp
         return _timed_out(problem, t_start, timing)
     state = _SQPState(x=problem.seed.ravel().copy(), ev=ev, qp=_sized_qp(problem, ev, None),
                       mu=cfg.initial_penalty, trust=cfg.initial_trust_rad, deadline=deadline,
-                      timing=timing)
+                      timing=timing, abandon_above=abandon_above_rad)
     _penalty_loop(problem, state)
     cpu_s = time.process_time() - cpu_start
     return _finish(problem, state, t_start, cpu_s)
@@ -95,7 +109,7 @@ def _penalty_loop(problem: TrajOptProblem, s: _SQPState) -> None:
     cfg = problem.config
     for _ in range(cfg.max_penalty_increases + 1):
         _optimise_at_penalty(problem, s)
-        if s.out_of_budget or problem.satisfied(s.ev):
+        if s.out_of_budget or s.abandoned or problem.satisfied(s.ev):
             break
         if s.penalty_increases == cfg.max_penalty_increases:
             break
@@ -112,7 +126,11 @@ def _optimise_at_penalty(problem: TrajOptProblem, s: _SQPState) -> None:
         accepted = _trust_region_step(problem, s, problem.merit(s.ev, s.mu))
         if s.trust < problem.config.min_trust_rad:
             s.converged = True
-        if s.converged or s.out_of_budget or not accepted:
+        if accepted:
+            s.accepted += 1
+            s.abandoned = (s.accepted >= ABANDON_AFTER_STEPS and path_length(
+                s.x.reshape(problem.n_waypoints, problem.dof)) > s.abandon_above)
+        if s.converged or s.out_of_budget or s.abandoned or not accepted:
             break
 
 
@@ -185,9 +203,11 @@ def _finish(problem: TrajOptProblem, s: _SQPState, t_start: float, cpu_s: float
 def _validated_status(problem: TrajOptProblem, s: _SQPState, Q: Array
                       ) -> tuple[str, bool | None, PathCertificate | None]:
     """(status, the validation's decision, its certificate) of the final trajectory Q (T, K)
-    rad: "converged" / "iteration_limit" / "infeasible" from the SQP, then "timeout",
-    "collision" or "exact_clear" as the validation decides."""
+    rad: "converged" / "iteration_limit" / "infeasible" / "abandoned" from the SQP, then
+    "timeout", "collision" or "exact_clear" as the validation decides."""
     cfg = problem.config
+    if s.abandoned:
+        return "abandoned", None, None
     satisfied = problem.satisfied(s.ev)
     status = ("converged" if s.converged else "iteration_limit") if satisfied else "infeasible"
     clearance_only = cfg.accept_exact_clear and problem.unmet(s.ev) == {"collision_m"}
