@@ -298,3 +298,32 @@ def test_trajopt_from_the_seed_is_abandoned_only_when_longer_than_the_answer(wor
                 assert path_length(s.path) > ratio * path_length(r.path)
             abandoned += len(cut)
     assert abandoned >= 1, abandoned   # measured: 1 of 16 here (Baxter abandons few)
+
+
+def test_more_routes_skip_only_those_that_cannot_beat_the_answer(world, roadmap):
+    """The routes stage shortcuts a route only while the straight line to its end is shorter
+    than the best answer so far: its result is still the shortest of *all* routes shortcut
+    (recomputed here, every route shortcut) whenever that beats the first answer, and
+    nothing otherwise; some routes are skipped."""
+    planner = RoadmapTrajOpt(world, roadmap, RoadmapTrajOptConfig(improve_time_s=10.0))
+    cases = generate_cases(world, 12, seed=7, family="tasks")
+    skipped = wins = 0
+    for i in range(len(cases)):
+        q0, goal = cases.q_start[i], cases.goal(i)
+        r = planner.plan(q0, goal, 10.0)
+        assert r.success, r.status
+        report = [s for s in r.stages if s.stage is Stage.ROUTES]
+        if not report:
+            continue
+        found = planner.seeder.seeds(q0, goal, planner.config.goal_routes)
+        every = [shortcut_path(world.fast, f.path) for f in found if f.path is not None]
+        shortest = min(path_length(p) for p in every)
+        first = r.solutions[0].length_rad
+        if shortest < first - 1e-9:
+            wins += 1
+            assert report[0].path is not None
+            assert path_length(report[0].path) == pytest.approx(shortest, abs=1e-9)
+        else:
+            assert report[0].path is None
+        skipped += report[0].detail["routes"] - report[0].detail["routes_shortcut"]
+    assert wins >= 1 and skipped >= 1, (wins, skipped)
