@@ -108,6 +108,53 @@ def test_partial_shortcuts_keep_the_ends_never_lengthen_and_stay_free(world, pla
     assert seeded >= 5 and shorter >= 1, (seeded, shorter)
 
 
+def _all_pairs_shortcut(fast, path, rng, rounds=8, pairs=16, resolution=0.02):
+    """partial_shortcut as specified: each round checks *every* drawn pair and splices in
+    the free one that saves the most (the reference for the one that stops at it)."""
+    P = np.asarray(path, dtype=float)
+    for _ in range(rounds):
+        if len(P) < 3:
+            break
+        cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))])
+        S = np.sort(rng.uniform(0.0, cum[-1], size=(pairs, 2)), axis=1)
+        i = np.clip(np.searchsorted(cum, S, side="right") - 1, 0, len(P) - 2)
+        keep = i[:, 0] < i[:, 1]
+        if not keep.any():
+            continue
+        S, i = S[keep], i[keep]
+        t = (S - cum[i]) / np.maximum(cum[i + 1] - cum[i], 1e-12)
+        A = P[i[:, 0]] + t[:, :1] * (P[i[:, 0] + 1] - P[i[:, 0]])
+        B = P[i[:, 1]] + t[:, 1:] * (P[i[:, 1] + 1] - P[i[:, 1]])
+        saved = (S[:, 1] - S[:, 0]) - np.linalg.norm(B - A, axis=1)
+        ok = (saved > 1e-6) & fast.motions_valid(A, B, resolution)
+        if not ok.any():
+            continue
+        k = int(np.argmax(np.where(ok, saved, -np.inf)))
+        P = np.vstack([P[: i[k, 0] + 1], A[k], B[k], P[i[k, 1] + 1:]])
+        P = P[np.concatenate([[True], np.abs(np.diff(P, axis=0)).max(axis=1) > 1e-12])]
+    return P
+
+
+def test_partial_shortcut_equals_checking_every_pair(world, planner):
+    """partial_shortcut checks a round's pairs largest saving first and stops at the first
+    free one: bit for bit the path of checking every pair (the reference above), on
+    roadmap seeds and their greedy shortcuts, with several rng seeds."""
+    cases = generate_cases(world, 6, seed=8)
+    compared = changed = 0
+    for i in range(len(cases)):
+        s = planner.seeder.seed(cases.q_start[i], cases.goal(i))
+        if not s.success:
+            continue
+        for P in (s.path, shortcut_path(world.fast, s.path)):
+            for seed in (0, 1):
+                Q = partial_shortcut(world.fast, P, np.random.default_rng(seed))
+                R = _all_pairs_shortcut(world.fast, P, np.random.default_rng(seed))
+                np.testing.assert_array_equal(Q, R)
+                compared += 1
+                changed += path_length(Q) < path_length(P) - 1e-6
+    assert compared >= 16 and changed >= 4, (compared, changed)
+
+
 @pytest.mark.parametrize("which", ["planner", "paper_planner"])
 def test_answers_are_exactly_free_and_shorter_than_the_roadmap_seed(world, which, request):
     """At least 7 of 8 cases solved (measured: 8 of 8 in both modes), each answer checked by
