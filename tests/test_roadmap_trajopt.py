@@ -6,6 +6,7 @@ import pytest
 
 from chekhov.bench.cases import generate_cases
 from chekhov.collision.exact import densify
+from chekhov.errors import ChekhovError
 from chekhov.planners.base import path_length
 from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt, RoadmapTrajOptConfig
 from chekhov.planners.shortcut import partial_shortcut, shortcut_path
@@ -327,6 +328,9 @@ def test_trajopt_from_the_seed_is_abandoned_only_when_longer_than_the_answer(wor
     the ratio times the answer returned (which can only have got shorter since the run
     began), and is not retried; with the ratio at infinity no run is abandoned. Every answer
     passes check_answer."""
+    for bad in (0.5, -1.0, float("nan"), "1"):
+        with pytest.raises(ChekhovError, match="abandon_ratio"):
+            RoadmapTrajOptConfig(abandon_ratio=bad)
     ratio = 1.0
     cutting = RoadmapTrajOpt(world, roadmap, RoadmapTrajOptConfig(abandon_ratio=ratio))
     never = RoadmapTrajOpt(world, roadmap, RoadmapTrajOptConfig(abandon_ratio=float("inf")))

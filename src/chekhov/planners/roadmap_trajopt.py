@@ -98,12 +98,16 @@ class RoadmapTrajOptConfig:
     def __post_init__(self) -> None:
         for name, unit in (("straight_line_time_s", " of s"), ("fallback_time_s", " of s"),
                            ("improve_time_s", " of s"), ("straight_line_ratio", ""),
-                           ("straight_line_max_blocked", ""), ("min_length_gain", ""),
-                           ("abandon_ratio", "")):
+                           ("straight_line_max_blocked", ""), ("min_length_gain", "")):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and v >= 0):
                 raise ChekhovError(f"RoadmapTrajOptConfig.{name}: must be a number{unit} >= 0, "
                                    f"got {v!r}")
+        r = self.abandon_ratio
+        if not (isinstance(r, int | float) and r >= 1.0):
+            raise ChekhovError(f"RoadmapTrajOptConfig.abandon_ratio: must be a number >= 1 (a "
+                               f"run is abandoned only when longer than the answer so far), "
+                               f"got {r!r}")
         if not (isinstance(self.goal_routes, int) and self.goal_routes >= 1):
             raise ChekhovError(f"RoadmapTrajOptConfig.goal_routes: must be an integer >= 1, "
                                f"got {self.goal_routes!r}")
