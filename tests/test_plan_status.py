@@ -157,3 +157,37 @@ def test_a_seed_that_fails_its_certification_is_a_failure_with_that_reason(world
         planner._optimise = lambda *a, **k: False          # no TrajOpt to rescue it
         r = planner.plan(q0, goal, 2.0)
         assert not r.success and r.path is None and r.status is status, r.info
+
+
+def test_a_candidate_that_fails_its_certification_leaves_the_longer_one_before_it(world,
+                                                                                 roadmap):
+    """Offers nobody listens to wait, uncertified, and the shortest is certified at the end:
+    when it fails (here: a straight line through the pole), the next shortest (a certified
+    answer's path, offered again) is certified and answers — not the first answer — and the
+    failure is reported with its stage."""
+    import time
+
+    from chekhov.planners.anytime import AnytimeRun
+    from chekhov.planners.query import PlanQuery
+
+    planner = RoadmapTrajOpt(world, roadmap)
+    more = generate_cases(world, 30, seed=4)   # 7 of them with a colliding line (measured)
+    for i in range(len(more)):
+        q0, qg = more.q_start[i], more.q_goal[i]
+        line = np.vstack([q0, qg])
+        if world.exact.path_valid(line, substeps=100):
+            continue   # a case whose straight line collides
+        r = planner.plan(q0, Goal.configuration(qg), 2.0)
+        assert r.success and len(r.path) >= 2
+        detour = np.vstack([r.path[:2], r.path[:1], r.path])   # the same motions, and more
+        run = AnytimeRun(world, PlanQuery(q0, Goal.configuration(qg), 10.0,
+                                          time.perf_counter()))
+        assert run.offer(detour, Stage.SHORTCUT)               # certified at once
+        assert run.offer(r.path, Stage.ROUTES) and run.offer(line, Stage.SIMPLIFY)
+        assert len(run.solutions) == 1                         # both wait
+        res = run.result(PlanStatus.SOLVED)
+        assert res.success and res.solutions[-1].stage is Stage.ROUTES
+        np.testing.assert_array_equal(res.path, r.path)
+        assert "simplify: collision" in str(res.info["rejected_offers"])
+        return
+    pytest.fail("no case with a colliding straight line")
