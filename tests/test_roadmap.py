@@ -363,3 +363,38 @@ def test_last_resorts_are_only_for_a_connection_the_query_needs(world, seeder, m
     called.clear()
     assert con.connect(q) == []
     assert called == ["_via_wrist", "_via_proximal", "_via_random", "_via_tree", "_wide"]
+
+
+def test_a_connection_is_kept_until_the_obstacles_change(world, seeder, monkeypatch):
+    """Connector.connect(q) again in the same world: the same connections without a motion
+    check; after an obstacle is added (and again after it is removed) they are worked out
+    anew; an answer whose deadline had passed is not kept."""
+    import time
+
+    conn = seeder.connector
+    checks: list[int] = []
+    real = conn._motions
+    monkeypatch.setattr(conn, "_motions", lambda Q0, Q1: checks.append(len(Q0)) or real(Q0, Q1))
+
+    def summary(found):
+        return [(c.node, c.cost, c.kind, c.via.tobytes()) for c in found]
+
+    Q = _free_configurations(world, 8, seed=11)
+    for q in Q[:6]:
+        checks.clear()
+        first = conn.connect(q)
+        n = len(checks)
+        assert n >= 1 and summary(conn.connect(q)) == summary(first) and len(checks) == n
+    before = summary(conn.connect(Q[0]))
+    T = np.eye(4)
+    T[:3, 3] = (0.0, 0.0, -5.0)   # far below the floor: the same connections
+    for change in (lambda: world.add_obstacle("far", Shape("sphere", (0.01,)), T),
+                   lambda: world.remove_obstacle("far")):
+        change()
+        checks.clear()
+        assert summary(conn.connect(Q[0])) == before and len(checks) >= 1
+    checks.clear()
+    conn.connect(Q[7], deadline=time.perf_counter() - 1.0)   # late: its first batch only
+    late = len(checks)
+    conn.connect(Q[7])
+    assert late >= 1 and len(checks) > late

@@ -36,6 +36,8 @@ from chekhov.world import World
 
 Array = NDArray[np.float64]
 _BATCHES = (1, 2, 6)
+_CACHE_SIZE = 1024
+"""Connections kept per obstacle set (each a few hundred bytes)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -69,6 +71,9 @@ class Connector:
         self.tree = cKDTree(roadmap.nodes)
         self.nearest = NearestNodes(roadmap.nodes)
         self.rng = np.random.default_rng(config.seed)
+        # connect()'s answers in the current world: (q's bytes, last_resorts) → connections
+        self._cache: dict[tuple[bytes, bool], list[Connection]] = {}
+        self._cache_version = -1
 
     def _motions(self, Q0: Array, Q1: Array) -> NDArray[np.bool_]:
         return self.world.fast.motions_valid(Q0, Q1, self.resolution)
@@ -101,7 +106,24 @@ class Connector:
         """Free connections of q (K,) (known free) to the roadmap, cheapest first; empty when
         there is none (the roadmap failure). ``last_resorts`` False skips the tree and the
         wide search (for a configuration the query can do without). No attempt starts, and
-        the tree stops growing, after ``deadline`` (a ``time.perf_counter()`` value, s)."""
+        the tree stops growing, after ``deadline`` (a ``time.perf_counter()`` value, s).
+
+        The answer is a function of q and the world's obstacles, so an answer completed
+        before its deadline is kept until the obstacles change (``obstacles_version``): an
+        anytime query connects its start and first goal again for more routes, and a
+        pick-and-place start recurs."""
+        version = self.world.fast.obstacles_version
+        if version != self._cache_version:
+            self._cache, self._cache_version = {}, version
+        key = (np.ascontiguousarray(q, dtype=np.float64).tobytes(), last_resorts)
+        if key in self._cache:
+            return list(self._cache[key])
+        found = self._connect(q, last_resorts, deadline)
+        if time.perf_counter() < deadline and len(self._cache) < _CACHE_SIZE:
+            self._cache[key] = found
+        return list(found)
+
+    def _connect(self, q: Array, last_resorts: bool, deadline: float) -> list[Connection]:
         self.rng = np.random.default_rng(self.config.seed)   # the same q, the same answer
         found = [Connection(n, c, q[:0].reshape(0, len(q)), "direct")
                  for n, c in self.direct(q, self.config.connect_candidates,
