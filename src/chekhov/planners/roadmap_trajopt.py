@@ -355,8 +355,8 @@ class RoadmapTrajOpt(PlannerBase):
         goal = run.query.goal
         if goal.is_pose and self._end_unclear(seed[-1]):
             goal = Goal.configuration(seed[-1])
-        line = float(np.linalg.norm(seed[-1] - seed[0]))
-        if not goal.is_pose and path_length(seed) <= (1 + self.config.min_length_gain) * line:
+        if not goal.is_pose and path_length(seed) <= ((1 + self.config.min_length_gain)
+                                                      * _line_length(seed)):
             run.best_info["trajopt_skipped"] = "the seed is as short as the line to its end"
             return None
         return goal
