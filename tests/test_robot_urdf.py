@@ -1,7 +1,9 @@
 """Any arm from its URDF: Robot.from_urdf agrees with the built-in description, resolves meshes
 through package_dirs, keys caches on its content (locked joints included), refuses groups that
-are not chains of 1-DOF joints; the numbered example plans."""
+are not chains of 1-DOF joints, plans continuous joints as bounded revolute ones, leaves
+adjacent links out of self-collision; the numbered example plans."""
 
+import itertools
 import re
 import shutil
 import subprocess
@@ -12,7 +14,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from chekhov import Robot, RobotError
+from chekhov import Robot, RobotError, World, load_scene
 from chekhov.robot.description import example_robot_data_dir
 
 SHARE = example_robot_data_dir()
@@ -102,3 +104,63 @@ def test_the_custom_urdf_example_plans():
                          timeout=300)
     assert out.returncode == 0, out.stderr
     assert out.stdout.startswith("solved certified"), out.stdout
+
+
+KINOVA = SHARE / "robots/kinova_description"
+KINOVA_JOINTS = [f"j2s6s200_joint_{i}" for i in range(1, 7)]
+
+
+def _kinova():
+    """A Kinova Jaco 2 (6 DOF; joints 1, 4 and 6 continuous, its SRDF disables no pair)."""
+    return Robot.from_urdf(KINOVA / "robots/kinova.urdf", srdf=KINOVA / "srdf/kinova.srdf",
+                           joints=KINOVA_JOINTS, ee_frame="j2s6s200_end_effector",
+                           package_dirs=[SHARE.parent])
+
+
+def test_continuous_joints_are_planned_as_bounded_revolute_ones():
+    """The Jaco's continuous joints (pinocchio: two coordinates, cos and sin) become revolute
+    ones over the range their <limit> gives (±2π), and the kinematics are the URDF's: the
+    end-effector pose equals pinocchio's on the unchanged file, with (cos θ, sin θ)."""
+    robot = _kinova()
+    assert robot.dof == 6
+    assert np.allclose(robot.lower[[0, 3, 5]], -2 * np.pi)
+    assert np.allclose(robot.upper[[0, 3, 5]], 2 * np.pi)
+    assert np.all(np.isfinite(robot.velocity_limit)) and np.all(robot.velocity_limit > 0)
+    raw = pin.buildModelFromUrdf(str(KINOVA / "robots/kinova.urdf"))
+    data, ee = raw.createData(), raw.getFrameId("j2s6s200_end_effector")
+    for q in robot.sample_uniform(np.random.default_rng(1), 10):
+        q_raw = pin.neutral(raw)
+        for k, name in enumerate(KINOVA_JOINTS):
+            j = raw.joints[raw.getJointId(name)]
+            q_raw[j.idx_q:j.idx_q + j.nq] = [np.cos(q[k]), np.sin(q[k])] if j.nq == 2 else q[k]
+        pin.framesForwardKinematics(raw, data, q_raw)
+        assert np.allclose(robot.compute_ee_pose(q), data.oMf[ee].homogeneous, atol=1e-10)
+
+
+def test_a_continuous_joint_without_limits_gets_a_turn_either_way(tmp_path):
+    urdf = tmp_path / "two.urdf"
+    urdf.write_text(
+        '<robot name="two"><link name="base"/><link name="a"><collision><geometry><box '
+        'size="0.1 0.1 0.1"/></geometry></collision></link><link name="b"/>'
+        '<joint name="j1" type="continuous"><parent link="base"/><child link="a"/>'
+        '<axis xyz="0 0 1"/></joint><joint name="j2" type="continuous"><parent link="a"/>'
+        '<child link="b"/><axis xyz="0 1 0"/><limit effort="3" velocity="2"/></joint></robot>')
+    robot = Robot.from_urdf(urdf, joints=["j1", "j2"], ee_frame="b")
+    assert np.allclose(robot.lower, -np.pi) and np.allclose(robot.upper, np.pi)
+    assert robot.velocity_limit[0] == np.inf and robot.velocity_limit[1] == 2.0
+
+
+def test_adjacent_links_are_not_checked_for_self_collision():
+    """Without SRDF entries a Jaco's neighbouring links, whose meshes meet at their joint,
+    collided in every configuration; they are now left out (as MoveIt's "Adjacent"), the
+    other pairs stay, and most random configurations are free."""
+    robot = _kinova()
+    pairs = {frozenset((robot.geometry_link(i), robot.geometry_link(j)))
+             for i, j in robot.self_collision_pairs}
+    links = ["j2s6s200_link_base"] + [f"j2s6s200_link_{i}" for i in range(1, 7)]
+    assert not any(frozenset(p) in pairs for p in itertools.pairwise(links))
+    assert frozenset(("j2s6s200_link_base", "j2s6s200_link_5")) in pairs
+    assert frozenset(("j2s6s200_link_2", "j2s6s200_link_6")) in pairs
+    world = World(load_scene("tabletop_pole"), robot)
+    free = [world.exact.is_valid(q) for q in robot.sample_uniform(np.random.default_rng(2), 100)]
+    assert sum(free) >= 50

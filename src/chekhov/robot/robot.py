@@ -13,6 +13,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from chekhov.errors import RobotError
+from chekhov.robot._urdf import adjacent_links, bounded_continuous, read_urdf
 from chekhov.robot.description import RobotDescription, SphereSettings, example_robot_data_dir
 from chekhov.transforms import make_transform, rpy_to_matrix
 
@@ -57,10 +58,17 @@ class Robot:
         """Data derived from this robot alone, kept by the layers above (the fast checker's
         fixed-part distance grids: ``collision.packed.GridCache``)."""
         self._package_dirs = [*description.package_dirs, *_default_package_dirs()]
+        urdf_root = read_urdf(urdf, description.name)
+        unlimited = bounded_continuous(urdf_root)
+        self._urdf_text = ET.tostring(urdf_root, encoding="unicode") if unlimited is not None \
+            else None
+        self._adjacent = adjacent_links(urdf_root)
         try:
-            full = pin.buildModelFromUrdf(str(urdf))
-            col = pin.buildGeomFromUrdf(full, str(urdf), pin.COLLISION,
-                                        package_dirs=self._package_dirs)
+            full = self._build_model()
+            for name in unlimited or ():   # as pinocchio leaves a continuous joint without <limit>
+                j = full.joints[full.getJointId(name)]
+                full.velocityLimit[j.idx_v] = full.effortLimit[j.idx_v] = np.inf
+            col = self._build_geometry(full, pin.COLLISION)
         except (RuntimeError, ValueError) as e:
             raise RobotError(f"robot '{description.name}': cannot load {urdf}: {e}") from e
         self._lock, self._q_ref = _locking(full, description, urdf)
@@ -84,14 +92,25 @@ class Robot:
     def visual_model(self) -> pin.GeometryModel:
         """The URDF's visual geometry, reduced and placed like the collision model (loaded on
         first use: planning never needs it)."""
-        vis = pin.buildGeomFromUrdf(self._full, str(self._urdf), pin.VISUAL,
-                                    package_dirs=self._package_dirs)
+        vis = self._build_geometry(self._full, pin.VISUAL)
         _, vis = pin.buildReducedModel(self._full, vis, self._lock, self._q_ref)
         T = pin.SE3(self.T_world_base)
         for g in vis.geometryObjects:   # the model's joints were moved at construction
             if g.parentJoint == 0:
                 g.placement = T * g.placement
         return vis
+
+    def _build_model(self) -> pin.Model:
+        if self._urdf_text is None:
+            return pin.buildModelFromUrdf(str(self._urdf))
+        return pin.buildModelFromXML(self._urdf_text)
+
+    def _build_geometry(self, full: pin.Model, kind: pin.GeometryType) -> pin.GeometryModel:
+        if self._urdf_text is None:
+            return pin.buildGeomFromUrdf(full, str(self._urdf), kind,
+                                         package_dirs=self._package_dirs)
+        return pin.buildGeomFromUrdfString(full, self._urdf_text, kind,
+                                           package_dirs=self._package_dirs)
 
     def content_hash(self) -> str:
         """SHA-256 (hex) of everything that decides this robot's geometry and kinematics: the
@@ -277,7 +296,9 @@ class Robot:
         """Pairs of collision geometries checked for self-collision.
 
         A pair is checked when at least one geometry moves, the two are on different joints,
-        and the SRDF does not disable their links (adjacent links or never in collision).
+        their links are not adjacent (:func:`~chekhov.robot._urdf.adjacent_links`: joined by
+        a joint, or through links without collision geometry — MoveIt's "Adjacent"), and the
+        SRDF does not disable them (never in collision).
         """
         geoms = self.collision_model.geometryObjects
         moving = set(self.moving_geometries)
@@ -289,7 +310,7 @@ class Robot:
                 if geoms[i].parentJoint == geoms[j].parentJoint:
                     continue
                 a, b = self.geometry_link(i), self.geometry_link(j)
-                if a == b or frozenset((a, b)) in self._srdf_disabled:
+                if a == b or frozenset((a, b)) in self._srdf_disabled | self._adjacent:
                     continue
                 pairs.append((i, j))
         return tuple(pairs)
