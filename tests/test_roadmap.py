@@ -200,6 +200,19 @@ def test_load_or_build_reuses_a_matching_file(tmp_path, world):
     assert not np.array_equal(c.nodes, a.nodes)
 
 
+def test_a_robot_with_every_joint_sampled_gets_no_wrist_copies(tmp_path, world):
+    """Wrist nodes redraw the distal joints; with none (every joint sampled, as a URDF robot's
+    default) they were duplicates of uniform nodes, whose self-loop edges the saved file's
+    check refused on loading."""
+    cfg = RoadmapConfig(n_nodes=60, semantic=False, n_wrist_nodes=50, proximal_joints=7,
+                        distal_values=(), seed=1)
+    roadmap = build_roadmap(world, cfg)
+    assert roadmap.meta.node_counts.get("wrist", 0) == 0
+    assert (roadmap.edges[:, 0] < roadmap.edges[:, 1]).all()
+    back = load_roadmap(save_roadmap(roadmap, tmp_path / "all.npz"), world)
+    assert np.array_equal(back.edges, roadmap.edges)
+
+
 # --- queries ------------------------------------------------------------------------------
 def test_query_seed_is_valid(world, seeder):
     Q = _free_configurations(world, 16, 7)

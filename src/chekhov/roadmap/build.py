@@ -148,10 +148,13 @@ class _Builder:
         return nodes
 
     def wrist_nodes(self, base: Array) -> Array:
+        """Up to ``n_wrist_nodes`` copies of uniform nodes with random distal joints; none
+        when every joint is sampled (the copies would be duplicates: a URDF robot's 990 of
+        them gave zero-length self-loop edges, and the saved roadmap did not load)."""
         n = self.config.n_wrist_nodes
-        if n == 0:
-            return np.empty((0, self.robot.dof))
         P, _ = distal_values(self.world, self.config)
+        if n == 0 or self.robot.dof - P == 0:
+            return np.empty((0, self.robot.dof))
         out: list[Array] = []
         have = 0
         for _ in range(200):

@@ -22,7 +22,8 @@ class RoadmapConfig:
     * ``region`` (semantic, ``semantic``): ``n_region_nodes`` end-effector poses drawn in the
       scene's regions of interest by weight (random orientation), IK to collision-free
       configurations.
-    * ``wrist`` (an extension; 0 turns it off): ``n_wrist_nodes`` copies of random uniform
+    * ``wrist`` (an extension; 0 turns it off, and there are none when every joint is
+      sampled — ``proximal_joints`` = K): ``n_wrist_nodes`` copies of random uniform
       nodes with the distal joints drawn uniformly, so that starts and goals with arbitrary
       wrists find a near roadmap node (shorter, cheaper, more often free connections).
 
