@@ -13,8 +13,10 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
+import yaml
 
-from chekhov import Robot, RobotError, World, load_scene
+from chekhov import Robot, RobotError, SceneError, World, load_scene
+from chekhov.cli import main
 from chekhov.robot.description import example_robot_data_dir
 
 SHARE = example_robot_data_dir()
@@ -164,3 +166,32 @@ def test_adjacent_links_are_not_checked_for_self_collision():
     world = World(load_scene("tabletop_pole"), robot)
     free = [world.exact.is_valid(q) for q in robot.sample_uniform(np.random.default_rng(2), 100)]
     assert sum(free) >= 50
+
+
+def test_a_scene_file_names_a_robot_file(tmp_path):
+    """``robot:`` a description file, relative to the scene file; its URDF relative to its own
+    folder (copied there), its SRDF from example-robot-data; the scene's base pose applies,
+    and the command line plans in it like in a built-in scene."""
+    arm = tmp_path / "arm"
+    arm.mkdir()
+    shutil.copy(PANDA / "urdf/panda.urdf", arm / "panda.urdf")
+    (arm / "my_panda.yaml").write_text(yaml.safe_dump({
+        "name": "my_panda", "urdf": "panda.urdf",
+        "srdf": "robots/panda_description/srdf/panda.srdf", "group_joints": JOINTS,
+        "ee_frame": "panda_hand_tcp", "proximal_joints": 7}))
+    scene = {"format": 1, "name": "my_bench", "robot": "arm/my_panda.yaml",
+             "base_pose": {"xyz": [0.1, 0.2, 0.3]},
+             "objects": [{"name": "b", "shape": "box", "size": [0.1, 0.1, 0.1],
+                          "pose": {"xyz": [0.6, 0.0, 0.4]}}]}
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(scene))
+    world = World.load(tmp_path / "s.yaml")
+    assert world.robot.name == "my_panda" and world.robot.dof == 7
+    assert world.robot.description.urdf == str(arm / "panda.urdf")
+    assert world.robot.self_collision_pairs == Robot.load("panda").self_collision_pairs
+    assert np.allclose(world.robot.T_world_base[:3, 3], [0.1, 0.2, 0.3])
+    assert main(["show", str(tmp_path / "s.yaml"), "--out", str(tmp_path / "s.png")]) == 0
+    assert (tmp_path / "s.png").stat().st_size > 0
+    for bad, match in (("arm/nope.yaml", "no robot description file"), (3, "got 3")):
+        (tmp_path / "bad.yaml").write_text(yaml.safe_dump({**scene, "robot": bad}))
+        with pytest.raises(SceneError, match=f"bad.yaml: field 'robot': .*{match}"):
+            load_scene(tmp_path / "bad.yaml")

@@ -123,6 +123,9 @@ class RobotDescription:
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> RobotDescription:
+        """A description file. Its relative ``urdf``, ``srdf`` and ``package_dirs`` entries
+        are taken from the file's folder when they exist there, else (as the built-in ones)
+        from the ``example-robot-data`` share folder."""
         path = Path(path)
         try:
             d = yaml.safe_load(path.read_text())
@@ -130,7 +133,7 @@ class RobotDescription:
             raise RobotError(f"{path}: cannot read robot description: {e}") from e
         if not isinstance(d, dict):
             raise RobotError(f"{path}: expected a mapping at top level")
-        return cls.from_dict(d, source=str(path))
+        return cls.from_dict(_beside(d, path.expanduser().resolve().parent), source=str(path))
 
     @classmethod
     def builtin(cls, name: str) -> RobotDescription:
@@ -139,6 +142,21 @@ class RobotDescription:
         if name not in names:  # never a path: "../x" must not reach outside the package
             raise RobotError(f"no built-in robot {name!r}; available: {names}")
         return cls.from_yaml(Path(str(resources.files("chekhov.robot") / "data" / f"{name}.yaml")))
+
+
+def _beside(d: dict[str, Any], folder: Path) -> dict[str, Any]:
+    """``d`` with its relative file entries made absolute where they exist in ``folder``."""
+    def here(p: Any) -> Any:
+        if isinstance(p, str) and not Path(p).is_absolute() and (folder / p).exists():
+            return str(folder / p)
+        return p
+    out = dict(d)
+    for key in ("urdf", "srdf"):
+        if key in out:
+            out[key] = here(out[key])
+    if isinstance(out.get("package_dirs"), list):
+        out["package_dirs"] = [here(p) for p in out["package_dirs"]]
+    return out
 
 
 def builtin_robots() -> list[str]:

@@ -129,9 +129,12 @@ class Robot:
     @classmethod
     def load(cls, name: str = "baxter_left", T_world_base: Array | None = None,
              locked: dict[str, float] | None = None) -> Robot:
-        """A built-in robot (``baxter_left`` or ``panda``), optionally at another base pose
+        """A built-in robot (``baxter_left`` or ``panda``) or a robot description file (a
+        ``.yaml`` path, :meth:`RobotDescription.from_yaml`), optionally at another base pose
         (T_world_base (4, 4), m) and with some locked joints at other values (rad or m)."""
-        return cls(RobotDescription.builtin(name).with_locked(locked or {}), T_world_base)
+        desc = (RobotDescription.from_yaml(name) if name.endswith((".yaml", ".yml"))
+                else RobotDescription.builtin(name))
+        return cls(desc.with_locked(locked or {}), T_world_base)
 
     @classmethod
     def from_urdf(cls, urdf: str | Path, *, joints: Sequence[str], ee_frame: str,

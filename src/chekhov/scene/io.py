@@ -30,7 +30,8 @@ def load_scene(name_or_path: str | Path) -> Scene:
             raise SceneError(f"no built-in scene {str(name_or_path)!r}; available: "
                              f"{builtin_scenes()} (or give a path to a .yaml file)")
         path = Path(str(resources.files("chekhov.scene") / "data" / f"{name_or_path}.yaml"))
-    return scene_from_dict(read_yaml(path, path.name), source=path.name)
+    return scene_from_dict(read_yaml(path, path.name), source=path.name,
+                           base_dir=path.expanduser().resolve().parent)
 
 
 def save_scene(scene: Scene, path: str | Path) -> None:

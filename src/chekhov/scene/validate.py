@@ -7,9 +7,10 @@ Rules beyond the README's format: numbers are ints or floats (not booleans, not 
 and at most ``MAX_LENGTH`` in size (m, or rad for angles and hinge states); every object needs
 a ``pose`` with ``xyz`` (no silent world origin); names are 1–100 characters of letters, digits,
 ``_``, ``.`` and ``-`` not starting with ``.`` or ``-`` (a scene name becomes a roadmap file
-name); ``robot`` names a built-in robot (a robot file is passed in code:
-``World(scene, Robot.from_yaml(path))``); a scene holds at most ``MAX_OBJECTS`` objects,
-``MAX_REGIONS`` regions, ``MAX_GRASPS`` grasps an object and ``MAX_STATES`` articulation states.
+name); ``robot`` names a built-in robot or a robot description file (``.yaml`` / ``.yml``,
+relative to the scene file's folder; kept as an absolute path); a scene holds at most
+``MAX_OBJECTS`` objects, ``MAX_REGIONS`` regions, ``MAX_GRASPS`` grasps an object and
+``MAX_STATES`` articulation states.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import numbers
 import re
 import reprlib
 from collections import Counter
+from pathlib import Path
 from typing import Any, Literal, cast
 
 import numpy as np
@@ -53,6 +55,7 @@ MAX_REGIONS = 200
 MAX_GRASPS = 200
 MAX_STATES = 32
 MAX_DESCRIPTION = 10_000  # characters
+MAX_PATH = 4096  # characters of a robot file's path
 NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.\-]{0,99}")
 
 _REPR = reprlib.Repr()
@@ -278,7 +281,23 @@ def _regions(ctx: _Ctx, spec: Any) -> tuple[Region, ...]:
     return tuple(regions)
 
 
-def _header(ctx: _Ctx, d: Any) -> tuple[str, str, str]:
+def _robot(ctx: _Ctx, v: Any, base_dir: Path | None) -> str:
+    """``robot``: a built-in robot's name, or the absolute path of an existing robot
+    description file (``.yaml`` / ``.yml``, relative to ``base_dir``, else the working
+    folder)."""
+    if isinstance(v, str) and v in builtin_robots():
+        return v
+    if isinstance(v, str) and v.endswith((".yaml", ".yml")) and len(v) <= MAX_PATH:
+        path = Path(v).expanduser()
+        path = path if path.is_absolute() else (base_dir or Path.cwd()) / path
+        if not path.is_file():
+            raise ctx.fail("robot", f"no robot description file at {path}")
+        return str(path.resolve())
+    raise ctx.fail("robot", f"expected one of {builtin_robots()} or a robot description file "
+                            f"(.yaml), got {show(v)}")
+
+
+def _header(ctx: _Ctx, d: Any, base_dir: Path | None = None) -> tuple[str, str, str]:
     """Checks the top level; returns (name, robot, description)."""
     if not isinstance(d, dict):
         raise SceneError(f"{ctx.source}: expected a mapping at top level, got "
@@ -291,7 +310,7 @@ def _header(ctx: _Ctx, d: Any) -> tuple[str, str, str]:
         raise ctx.fail("format", f"unsupported scene format {show(fmt)}; "
                                  f"this chekhov reads {FORMAT_VERSION}")
     name = _name(ctx, "name", d.get("name"))
-    robot = _choice(ctx, "robot", d.get("robot", "baxter_left"), builtin_robots())
+    robot = _robot(ctx, d.get("robot", "baxter_left"), base_dir)
     description = d.get("description", "")
     if not isinstance(description, str) or len(description) > MAX_DESCRIPTION:
         raise ctx.fail("description", f"expected text of at most {MAX_DESCRIPTION} characters, "
@@ -299,10 +318,11 @@ def _header(ctx: _Ctx, d: Any) -> tuple[str, str, str]:
     return name, robot, description
 
 
-def scene_from_dict(d: Any, source: str = "<dict>") -> Scene:
-    """Validate a parsed scene mapping and build a :class:`Scene` (rules: module docstring)."""
+def scene_from_dict(d: Any, source: str = "<dict>", base_dir: Path | None = None) -> Scene:
+    """Validate a parsed scene mapping and build a :class:`Scene` (rules: module docstring);
+    a robot file's relative path is taken from ``base_dir`` (the scene file's folder)."""
     ctx = _Ctx(source)
-    name, robot, description = _header(ctx, d)
+    name, robot, description = _header(ctx, d, base_dir)
     objs = _list(ctx, "objects", d.get("objects", []), MAX_OBJECTS, "objects")
     objects = tuple(_object(ctx, o, i) for i, o in enumerate(objs))
     dup = sorted(n for n, c in Counter(o.name for o in objects).items() if c > 1)
