@@ -760,3 +760,22 @@ def test_the_evaluators_escape_motions_stay_within_the_limits(limits):
         assert (np.abs(a_first) <= limits.acceleration * (1 + 1e-9)).all()
         a_mean = np.diff(v_mean, axis=0) / dt
         assert (np.abs(a_mean) <= limits.acceleration * (1 + 1e-9)).all()
+
+
+def test_a_join_from_full_velocity_and_outward_acceleration_keeps_the_velocity_limit(limits):
+    """A timed plan's cruise begins at full velocity with the ramp's full acceleration (its
+    acceleration switches there); joined from that state, Ruckig first had to bring the
+    acceleration down at its jerk limit and overshot the velocity limit (1.2% for 0.63 rad/s)."""
+    K = len(limits.velocity)
+    v, a = -limits.velocity, -limits.acceleration
+    piece = ruckig_piece(State(np.zeros(K), v, a), State(np.full(K, -2.0), np.zeros(K),
+                                                          np.zeros(K)), 0.0, limits, "join")
+    assert piece is not None
+    ts = np.linspace(0.0, min(piece.t_end, 0.5), 2001)
+    V = np.array([piece.sample(t).qd for t in ts])
+    assert (np.abs(V) <= limits.velocity * (1 + 1e-9)).all()
+    # away from the limit the start's acceleration is kept (no jump)
+    half = State(np.zeros(K), 0.5 * v, a)
+    piece = ruckig_piece(half, State(np.full(K, -2.0), np.zeros(K), np.zeros(K)), 0.0,
+                         limits, "join")
+    assert piece is not None and np.allclose(piece.sample(0.0).qdd, a)

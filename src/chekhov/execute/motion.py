@@ -240,8 +240,7 @@ def ruckig_piece(start: State, goal: State, t0: float, limits: Limits, kind: str
     inp = InputParameter(dof)
     _bound(inp, bounds)
     inp.current_position, inp.current_velocity = list(start.q), list(start.qd)
-    inp.current_acceleration = list(np.clip(start.qdd, -limits.acceleration,
-                                            limits.acceleration))
+    inp.current_acceleration = list(braking_room(start, limits, limits.jerk * JOIN_JERK_SCALE))
     inp.target_position, inp.target_velocity = list(goal.q), list(goal.qd)
     a_goal = np.clip(goal.qdd, -limits.acceleration, limits.acceleration)
     inp.target_acceleration = list(np.where(np.abs(a_goal) < 1e-9, 0.0, a_goal))
@@ -260,6 +259,19 @@ def ruckig_piece(start: State, goal: State, t0: float, limits: Limits, kind: str
         q, qd, qdd = traj.at_time(min(max(t, 0.0), traj.duration))
         return State(np.asarray(q), np.asarray(qd), np.asarray(qdd))
     return Piece(t0, t0 + traj.duration, sample, kind, batch_sampler(traj))
+
+
+def braking_room(start: State, limits: Limits, jerk: Array) -> Array:
+    """start's acceleration (K,) rad/s², within the limits and such that bringing it to 0 at
+    ``jerk`` (K,) rad/s³ keeps the velocity within its limit: where it pushes the velocity
+    outwards, |q̈| ≤ sqrt(2 j (v_max - |q̇|)) (0 at the limit). A timed plan leaves a cruise's
+    first instant at full velocity with the ramp's full acceleration (its acceleration switches
+    there); a join from that state overshot the velocity limit by 1.2% (a Kinova Jaco's
+    0.63 rad/s joint: 0.636 rad/s)."""
+    a = np.clip(start.qdd, -limits.acceleration, limits.acceleration)
+    cap = np.sqrt(2 * jerk * np.maximum(limits.velocity - np.abs(start.qd), 0.0))
+    outwards = a * start.qd > 0
+    return np.where(outwards, np.clip(a, -cap, cap), a)
 
 
 def stop_from(start: State, t0: float, limits: Limits, bounds: Bounds | None = None
@@ -294,8 +306,7 @@ def _velocity_stop(start: State, limits: Limits, jerk_scale: float) -> Trajector
     inp.control_interface = ControlInterface.Velocity
     inp.synchronization = Synchronization.No
     inp.current_position, inp.current_velocity = list(start.q), list(start.qd)
-    inp.current_acceleration = list(np.clip(start.qdd, -limits.acceleration,
-                                            limits.acceleration))
+    inp.current_acceleration = list(braking_room(start, limits, limits.jerk * jerk_scale))
     inp.target_velocity, inp.target_acceleration = [0.0] * dof, [0.0] * dof
     inp.max_velocity = list(limits.velocity)
     inp.max_acceleration = list(limits.acceleration)
