@@ -231,7 +231,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
                 exact_ok += world.exact.path_valid(r.path, substeps=100)
                 ratios.append(r.path_length / path_length(np.asarray(r.info["roadmap_seed"])))
                 shown = r.path if shown is None else shown
-        png = render_scene(world, q=shown[-1] if shown is not None else np.zeros(7),
+        png = render_scene(world, q=shown[-1] if shown is not None else np.zeros(world.robot.dof),
                            path=shown, out=out / f"{name}.png")
         n = len(cases.q_start)
         print(f"{name:20s} roadmap {roadmap.n_nodes} nodes ({t_map:4.1f} s)  solved {solved}/{n}"
