@@ -60,8 +60,6 @@ def _float_or_none(text: str | None) -> float | None:
     return x if x is not None and math.isfinite(x) else None
 
 
-
-
 def adjacent_links(root: ET.Element) -> frozenset[frozenset[str]]:
     """Pairs of links whose self-collision is never checked, as MoveIt's setup assistant
     disables them ("Adjacent"): a link with collision geometry and its nearest ancestor with

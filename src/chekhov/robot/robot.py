@@ -305,6 +305,7 @@ class Robot:
         """
         geoms = self.collision_model.geometryObjects
         moving = set(self.moving_geometries)
+        disabled = self._srdf_disabled | self._adjacent
         pairs = []
         for i in range(len(geoms)):
             for j in range(i + 1, len(geoms)):
@@ -313,7 +314,7 @@ class Robot:
                 if geoms[i].parentJoint == geoms[j].parentJoint:
                     continue
                 a, b = self.geometry_link(i), self.geometry_link(j)
-                if a == b or frozenset((a, b)) in self._srdf_disabled | self._adjacent:
+                if a == b or frozenset((a, b)) in disabled:
                     continue
                 pairs.append((i, j))
         return tuple(pairs)
