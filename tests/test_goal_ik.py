@@ -4,7 +4,7 @@ and the exact checker, not by the compiled kinematics that produced them."""
 import numpy as np
 import pytest
 
-from chekhov import Goal
+from chekhov import Goal, Robot
 from chekhov.robot.goal_ik import GoalIKConfig, GoalResolver, distinct_rows
 from chekhov.transforms import rotation_angle
 
@@ -66,3 +66,23 @@ def test_distinct_rows_keeps_order_and_separation():
     Q = np.array([[0.0, 0], [0.05, 0], [0.2, 0], [0.21, 0.01], [1, 1]])
     np.testing.assert_array_equal(distinct_rows(Q, 0.1, 5), Q[[0, 2, 4]])
     np.testing.assert_array_equal(distinct_rows(Q, 0.1, 2), Q[[0, 2]])
+
+
+def test_a_pose_whose_free_solutions_are_rare_gets_more_restarts():
+    """Solutions found but all rejected (in collision) mean the pose is reachable: random
+    rounds go on (``obstructed_rounds``) until one is accepted. Here ``valid`` accepts only
+    solutions with joint 3 within 0.1 rad of 1.5 rad: the 4 usual rounds find none, the
+    further rounds do, and the solution meets the pose and the filter."""
+    robot = Robot.load("panda")
+    T = robot.compute_ee_pose(np.array([0.3, 0.2, -0.1, -1.8, 0.2, 1.9, 0.5]))
+
+    def rare(Q):
+        return np.abs(Q[:, 2] - 1.5) < 0.1
+
+    plain = GoalResolver(robot, rare, GoalIKConfig(obstructed_rounds=0, thorough=False))
+    assert len(plain.resolve(Goal.pose(T), n=1)) == 0
+    found = GoalResolver(robot, rare, GoalIKConfig(thorough=False)).resolve(Goal.pose(T), n=1)
+    assert len(found) == 1 and rare(found.Q).all()
+    T_found = robot.compute_ee_pose(found.Q[0])
+    assert np.linalg.norm(T_found[:3, 3] - T[:3, 3]) < 1e-3
+    assert rotation_angle(T_found[:3, :3], T[:3, :3]) < 1e-2
