@@ -4,8 +4,9 @@ meet it, for every planner.
 A configuration goal is its configuration. A pose goal is solved by damped least squares from
 the seeds a caller knows to be good (the start, the roadmap nodes whose end-effector poses are
 nearest), then from random restarts, compiled (:class:`ChainKinematics`, ~10–30 µs a solve) for
-a serial revolute chain; when that finds nothing (or the chain is not serial) pinocchio's
-thorough :func:`~chekhov.robot.ik.solve_ik` has the rest of the time. Only solutions the
+a serial revolute chain — more rounds of them when every solution found collides; when that
+finds nothing (or the chain is not serial) pinocchio's thorough
+:func:`~chekhov.robot.ik.solve_ik` has its restarts (none after the deadline). Only solutions the
 caller's ``valid`` accepts (collision-free, by the fast checker) count.
 
 Random restarts draw from ``np.random.default_rng(seed)`` made afresh for every call, so the same
@@ -45,8 +46,8 @@ class GoalIKConfig:
             rounds and pinocchio's 40 restarts found none, and Roadmap + TrajOpt answered
             "no_ik" at 68 ms of a 2 s limit where RRTConnect (another seed order) solved it.
         min_separation: rad, solutions closer than this (joint-space norm) are one.
-        thorough: when the compiled rounds find nothing, pinocchio's ``solve_ik`` (slower,
-            more restarts) until the deadline.
+        thorough: when the compiled rounds find nothing, pinocchio's ``solve_ik`` (slower;
+            up to ``IKConfig.max_restarts`` restarts, none after the deadline).
         seed: seed of the random restarts (a fresh generator per call).
     """
 
