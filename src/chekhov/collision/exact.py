@@ -12,6 +12,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from chekhov.collision.advance import first_collision_certified, pair_weights
+from chekhov.collision.hull_bounds import TRUSTED_BOUND_M, HullBounds
 from chekhov.errors import RobotError
 from chekhov.robot.robot import Robot
 from chekhov.scene.model import Scene, Shape
@@ -49,6 +50,9 @@ class ExactChecker:
         self.data = robot.model.createData()
         self.geom_model = robot.collision_model.copy()
         self._robot_ngeoms = self.geom_model.ngeoms
+        # hull distance bounds for pairs with large meshes (hull_bounds.py)
+        self._hulls = HullBounds(self.geom_model, self._robot_ngeoms)
+        self._hull_pairs = np.zeros(0, dtype=bool)   # per collision pair: a hull on a side
         self._radii: dict[int, Array] = {}   # motion bounds of the robot's geometries
         # collision data whose requests carry per-pair security margins (pairs_within)
         self._margin_data: pin.GeometryData | None = None
@@ -91,6 +95,7 @@ class ExactChecker:
         self._margin_data = None
         self._spheres = None
         self._pairs = np.argwhere(np.triu(M, 1))   # (P, 2), in the model's order
+        self._hull_pairs = self._hulls.covers(self._pairs)
         self._weights = pair_weights(self.model, gm, self._pairs, self._radii)
 
     def add_obstacle(self, name: str, shape: Shape, T_world_obj: Array) -> None:
@@ -182,14 +187,23 @@ class ExactChecker:
 
         coal's collision test with the margin as its security margin (a yes/no with early
         exit, ~30 times cheaper than a distance on the Panda's meshes); the margins are kept in
-        the requests of a GeometryData of their own, and only changed ones are set."""
+        the requests of a GeometryData of their own, and only changed ones are set. A pair with
+        a large mesh whose hull bound (``hull_bounds.py``) clears its margin is not asked."""
         gd, gm = self._margin_geometry(), self.geom_model
         if not np.array_equal(self._margins, margins):
             reqs = gd.collisionRequests
             for k in np.flatnonzero(self._margins != margins).tolist():
                 reqs[k].security_margin = float(margins[k])
             self._margins = np.array(margins, dtype=float)
-        if pairs is None or 4 * len(pairs) > len(margins):   # all pairs, in one call
+        if self._hulls:
+            todo = np.arange(len(margins)) if pairs is None else np.asarray(pairs, np.int64)
+            self._place(q)
+            hulled = todo[self._hull_pairs[todo]]
+            if len(hulled):
+                lb = self._hulls.lower_bounds(gm, gd, self._pairs[hulled])
+                todo = np.setdiff1d(todo, hulled[lb >= margins[hulled]])
+            pairs = todo
+        elif pairs is None or 4 * len(pairs) > len(margins):   # all pairs, in one call
             self._placed = np.array(q, dtype=float)
             if not pin.computeCollisions(self.model, self.data, gm, gd, self._placed, True):
                 return np.zeros(0, dtype=np.int64)
@@ -197,16 +211,28 @@ class ExactChecker:
             close = np.array([k for k, r in enumerate(gd.collisionResults) if r.isCollision()],
                              dtype=np.int64)
             return close if pairs is None else np.intersect1d(close, pairs)
-        self._place(q)
+        else:
+            self._place(q)
         return np.array([k for k in np.asarray(pairs).tolist() if pin.computeCollision(gm, gd, k)],
                         dtype=np.int64)
 
     def pair_distances(self, q: Array, pairs: NDArray[np.int64]) -> Array:
         """coal's distance (m; ≤ 0 in contact) between the geometries of each collision pair
-        in ``pairs`` (indices into ``geom_model.collisionPairs``) at q (K,)."""
-        gd = self._place(q)
-        return np.array([pin.computeDistance(self.geom_model, gd, k).min_distance
-                         for k in np.asarray(pairs).tolist()], dtype=float)
+        in ``pairs`` (indices into ``geom_model.collisionPairs``) at q (K,) — or, for a pair
+        with a large mesh, a lower bound on it (the hulls' distance, ``hull_bounds.py``) when
+        that bound is at least ``TRUSTED_BOUND_M``: a distance below it is always the mesh's."""
+        gd, gm = self._place(q), self.geom_model
+        pairs = np.asarray(pairs, dtype=np.int64)
+        out = np.full(len(pairs), np.nan)
+        if self._hulls:
+            hulled = np.flatnonzero(self._hull_pairs[pairs])
+            if len(hulled):
+                lb = self._hulls.lower_bounds(gm, gd, self._pairs[pairs[hulled]])
+                trusted = lb >= TRUSTED_BOUND_M
+                out[hulled[trusted]] = lb[trusted]
+        for i in np.flatnonzero(np.isnan(out)).tolist():
+            out[i] = pin.computeDistance(gm, gd, int(pairs[i])).min_distance
+        return out
 
     def _margin_geometry(self) -> pin.GeometryData:
         """The GeometryData of :meth:`pairs_within` and :meth:`pair_distances` (a new one,
