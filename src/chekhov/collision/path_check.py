@@ -51,6 +51,7 @@ from __future__ import annotations
 import hashlib
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -154,28 +155,42 @@ def exact_path_decision(fast: FastChecker, exact: ExactChecker, path: Array,
     """
     P = np.ascontiguousarray(path, dtype=np.float64)
     coal_ = _Coal.make(fast, exact, P, int(substeps))
+    coal_.deadline = deadline
+    try:
+        valid = _decide(fast, coal_, P)
+    except _PastDeadlineError:
+        return PathDecision(None, None)
+    if not valid:
+        return PathDecision(False, None)
+    return PathDecision(True, PathCertificate(path_digest(P), int(substeps),
+                                              fast.obstacles_version))
+
+
+class _PastDeadlineError(Exception):
+    """The decision's deadline passed (looked at between chunks, windows and coal queries)."""
+
+
+def _decide(fast: FastChecker, coal_: _Coal, P: Array) -> bool:
+    """:func:`exact_path_decision`'s walk: whether P is free; raises :class:`_PastDeadlineError`."""
     last = len(P) - 1
     n = coal_.substeps + 1
     for a in range(0, max(last, 1), CHUNK_SEGMENTS):
-        if time.perf_counter() > deadline:
-            return PathDecision(None, None)
+        coal_.check_time()
         chunk = P[a:min(a + CHUNK_SEGMENTS, last) + 1]
         size = (len(chunk) - 1) * n + 1   # the chunk's samples
         i = coal_.first_alarm(fast, chunk, 0)
         while i is not None:
-            if time.perf_counter() > deadline:
-                return PathDecision(None, None)
+            coal_.check_time()
             # coal, configuration by configuration, over a window, at most to the segment's
             # far end (conservative advancement's first distances cost more than a few
             # collision tests: a window of 4 near contact took 4.7 ms that way on the Panda,
             # 0.4 ms so)
             end = min(size, (i // n + 1) * n + 1, i + EXACT_WINDOW)
             if not all(coal_.sample_free(a * n + j) for j in range(i, end)):
-                return PathDecision(False, None)
+                return False
             end = max(end, coal_.certified_through() + 1 - a * n)
             i = coal_.first_alarm(fast, chunk, end) if end < size else None
-    return PathDecision(True, PathCertificate(path_digest(P), int(substeps),
-                                              fast.obstacles_version))
+    return True
 
 
 class _Coal:
@@ -194,6 +209,7 @@ class _Coal:
         # (empty: the screen as it is)
         self.pad = self.grow = np.zeros(0)
         self.D: Array | None = None   # the densified path, when first needed
+        self.deadline = math.inf      # time.perf_counter() value, s
         if weights is not None:
             W, row = weights
             # m: per pair, the largest motion bound of one step between samples
@@ -230,6 +246,11 @@ class _Coal:
                             self.pad, self.grow)
         return None if i == NONE else int(i)
 
+    def check_time(self) -> None:
+        """Raise :class:`_PastDeadlineError` once the deadline has passed."""
+        if time.perf_counter() > self.deadline:
+            raise _PastDeadlineError
+
     def certified_through(self) -> int:
         """The last sample through which coal's certificates cover every pair (-1: none)."""
         return -1 if self.weights is None else int(self.until.min())
@@ -260,6 +281,7 @@ class _Coal:
         self.until[todo] = j + LOOKAHEAD
         if len(close) == 0:
             return True
+        self.check_time()
         d = exact.pair_distances(q, close)
         if d.min() <= MARGIN_SLACK:   # in contact, or too near it to prove anything
             return False
@@ -273,8 +295,9 @@ class _Coal:
         Wc = W[row[close]]
         half = np.maximum(np.abs(sides[0] - q) @ Wc.T, np.abs(sides[1] - q) @ Wc.T)
         near = d < half + MARGIN_SLACK
-        return not near.any() or all(_motion_free(exact, close[near], Wc[near], q, d[near], end)
-                                     for end in sides)
+        return not near.any() or all(
+            _motion_free(exact, close[near], Wc[near], q, d[near], end, self.check_time)
+            for end in sides)
 
 
 def _round_up(x: Array | float) -> Array:
@@ -283,7 +306,7 @@ def _round_up(x: Array | float) -> Array:
 
 
 def _motion_free(exact: ExactChecker, pairs: NDArray[np.int64], Wc: Array, qa: Array,
-                 da: Array, qb: Array) -> bool:
+                 da: Array, qb: Array, check_time: Callable[[], None]) -> bool:
     """Whether the collision pairs ``pairs`` (C,) stay apart along the straight motion
     qa → qb (K,) rad, given their coal distances da (C,) m at qa; Wc (C, K) their motion
     weights (:attr:`ExactChecker.motion_weights`).
@@ -292,7 +315,9 @@ def _motion_free(exact: ExactChecker, pairs: NDArray[np.int64], Wc: Array, qa: A
     · W the motion bound of the piece: at a fraction t of the way the clearance is at least
     max(d_a - t L, d_b - (1 - t) L) ≥ (d_a + d_b - L) / 2. Unproved pieces are halved, with
     coal's distances at their midpoints, at most :data:`REFINE_POINTS` of them; a distance
-    within the slack of contact ends the proof too (False)."""
+    within the slack of contact ends the proof too (False). ``check_time`` is called before
+    each coal query (it raises once the decision's deadline has passed)."""
+    check_time()
     db = exact.pair_distances(qb, pairs)
     pieces = [(qa, da, qb, db)]
     points = 1
@@ -303,6 +328,7 @@ def _motion_free(exact: ExactChecker, pairs: NDArray[np.int64], Wc: Array, qa: A
         if points >= REFINE_POINTS or d0.min() <= MARGIN_SLACK or d1.min() <= MARGIN_SLACK:
             return False
         c = 0.5 * (a + b)
+        check_time()
         dc = exact.pair_distances(c, pairs)
         points += 1
         pieces += [(a, d0, c, dc), (c, dc, b, d1)]
