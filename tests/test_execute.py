@@ -779,3 +779,18 @@ def test_a_join_from_full_velocity_and_outward_acceleration_keeps_the_velocity_l
     piece = ruckig_piece(half, State(np.full(K, -2.0), np.zeros(K), np.zeros(K)), 0.0,
                          limits, "join")
     assert piece is not None and np.allclose(piece.sample(0.0).qdd, a)
+
+
+def test_an_exact_check_past_its_budget_answers_not_free(world, planner):
+    """``check_budget_s`` bounds the executive's exact checks: a check cut by it is answered
+    the safe way (not free) and counted; without a budget the same motion is free."""
+    from chekhov.execute.executor import Executor
+    from chekhov.execute.worker import InlineWorker
+    q0, goal = start_and_goal(world, 0, 0)
+    Q = np.array([q0, q0])              # standing at the task's start, exactly free
+    assert world.exact.path_valid(Q, 4)
+    for budget, free in ((None, True), (0.0, False)):
+        c = replace(CONFIG.executor, check_budget_s=budget)
+        ex = Executor(world, InlineWorker(world, planner, c.timing), goal, c)
+        assert ex._exact_free(Q, 4) is free
+        assert ex.counters.undecided_checks == (0 if free else 1)

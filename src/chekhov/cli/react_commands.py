@@ -20,7 +20,8 @@ first answering motion commanded: a rejoin, a hold short of the conflict, a brak
 or a new plan), resolve_latency_ms_p50/_p95/_p99 (→ a motion to the goal that answers it),
 replans_per_episode, safe_stops, dodges, holds, time_to_goal_ratio (median, against the
 episode's task alone: its goal changes, no forearm, no kick), limit_violations,
-overrun_steps (steps over a tick), lag_rejoins (joins back onto a motion after one),
+overrun_steps (steps over a tick), undecided_checks (exact checks cut by their budget,
+answered safe), lag_rejoins (joins back onto a motion after one),
 compute_charged); else a table. ``--out`` also writes the JSON lines to a file (atomically).
 """
 

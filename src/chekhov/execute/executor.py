@@ -474,8 +474,7 @@ class Executor:
         if ok.all():
             return None
         i = int(np.argmin(ok))
-        self._sync_exact()
-        if exact_path_decision(self.world.fast, self.world.exact, Q[i:], 1).valid:
+        if self._exact_free(Q[i:], 1):
             return None
         return float(ts[i])
 
@@ -490,8 +489,19 @@ class Executor:
             return False
         step = float(np.abs(np.diff(Q, axis=0)).max(initial=0.0))
         sub = max(1, math.ceil(step / 0.02))
+        return self._exact_free(Q, sub)
+
+    def _exact_free(self, Q: Array, substeps: int) -> bool:
+        """The exact decision on the polyline Q (N, K) rad at ``substeps``; False (the safe
+        answer) when it takes longer than ``check_budget_s``."""
         self._sync_exact()
-        return bool(exact_path_decision(self.world.fast, self.world.exact, Q, sub).valid)
+        budget = self.config.check_budget_s
+        deadline = math.inf if budget is None else time.perf_counter() + budget
+        valid = exact_path_decision(self.world.fast, self.world.exact, Q, substeps,
+                                    deadline).valid
+        if valid is None:
+            self.counters.undecided_checks += 1
+        return bool(valid)
 
     def _sync_exact(self) -> None:
         """The exact checker holds the obstacles the fast one does (set only when needed:
