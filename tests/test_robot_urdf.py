@@ -195,3 +195,16 @@ def test_a_scene_file_names_a_robot_file(tmp_path):
         (tmp_path / "bad.yaml").write_text(yaml.safe_dump({**scene, "robot": bad}))
         with pytest.raises(SceneError, match=f"bad.yaml: field 'robot': .*{match}"):
             load_scene(tmp_path / "bad.yaml")
+
+
+def test_show_draws_a_configuration_within_the_limits():
+    """Without --q, ``chekhov show`` drew the zero configuration, outside the Jaco's joint
+    limits (its joints 2 and 3 do not reach zero); now the SRDF's ready state, else zero moved
+    into the limits."""
+    from chekhov.cli.scene_commands import _default_q
+    robot = _kinova()
+    world = World(load_scene("tabletop_pole"), robot)
+    assert not robot.within_limits(np.zeros(robot.dof)[None])[0]
+    assert robot.within_limits(_default_q(world)[None])[0]
+    panda = World.load("panda_table_shelf")
+    assert np.allclose(_default_q(panda), [0, -0.785, 0, -2.356, 0, 1.571, 0.785], atol=1e-3)

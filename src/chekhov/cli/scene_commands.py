@@ -14,6 +14,8 @@ from chekhov.cli import checks
 from chekhov.errors import ChekhovError
 
 if TYPE_CHECKING:
+    from numpy.typing import NDArray
+
     from chekhov.planners.result import PlanResult
     from chekhov.roadmap.graph import Roadmap
     from chekhov.world import World
@@ -133,6 +135,15 @@ def _check_limits(world: World, Q: np.ndarray | None, arg: str) -> None:
     raise ChekhovError(f"{arg}: outside the joint limits (rad){where}: {'; '.join(bad)}")
 
 
+def _default_q(world: World) -> NDArray[np.float64]:
+    """What ``show`` draws without --q: the robot's ready configuration (its SRDF's), else
+    zero moved into the joint limits."""
+    from chekhov._case_tasks import ready_configuration
+    q = ready_configuration(world)
+    return np.clip(np.zeros(world.robot.dof), world.robot.lower, world.robot.upper) \
+        if q is None else q
+
+
 def _cmd_show(args: argparse.Namespace) -> int:
     from chekhov.bench.files import write_file
     from chekhov.viewer.render import render_scene
@@ -151,7 +162,7 @@ def _cmd_show(args: argparse.Namespace) -> int:
     elif args.case is not None:
         path, seed, note = _plan_case(world, args)
     if q is None and path is None:
-        q = np.zeros(world.robot.dof)
+        q = _default_q(world)
     out = render_scene(world, q=q, path=path, seed=seed, out=args.out, ghosts=args.ghosts,
                        title=args.title)
     if args.save_path and path is not None:
@@ -231,7 +242,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
                 exact_ok += world.exact.path_valid(r.path, substeps=100)
                 ratios.append(r.path_length / path_length(np.asarray(r.info["roadmap_seed"])))
                 shown = r.path if shown is None else shown
-        png = render_scene(world, q=shown[-1] if shown is not None else np.zeros(world.robot.dof),
+        png = render_scene(world, q=shown[-1] if shown is not None else _default_q(world),
                            path=shown, out=out / f"{name}.png")
         n = len(cases.q_start)
         print(f"{name:20s} roadmap {roadmap.n_nodes} nodes ({t_map:4.1f} s)  solved {solved}/{n}"
