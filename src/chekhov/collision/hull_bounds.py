@@ -54,10 +54,7 @@ class HullBounds:
 
     def covers(self, pairs: NDArray[np.int64]) -> NDArray[np.bool_]:
         """(P,) whether a pair of geometry indices ``pairs`` (P, 2) has a hull on either side."""
-        has = np.zeros(int(pairs.max(initial=-1)) + 1, dtype=bool)
-        idx = np.fromiter(self.hulls, dtype=np.int64)
-        has[idx[idx < len(has)]] = True
-        return has[pairs[:, 0]] | has[pairs[:, 1]]
+        return np.asarray(np.isin(pairs, list(self.hulls)).any(axis=1), dtype=bool)
 
     def lower_bounds(self, geom_model: pin.GeometryModel, gd: pin.GeometryData,
                      pairs: NDArray[np.int64]) -> Array:
@@ -84,6 +81,8 @@ def _hull(geometry: coal.CollisionGeometry) -> coal.CollisionGeometry | None:
     if not isinstance(geometry, coal.BVHModelBase) or geometry.num_tris < MIN_TRIANGLES:
         return None
     V = np.asarray(geometry.vertices(), dtype=float)
+    # not primitives.support_points: that falls back to all the points when qhull fails, and
+    # coal's own qhull call crashes the process (a segfault) on a flat set
     try:
         corners = V[ConvexHull(V).vertices]
     except QhullError:   # flat or degenerate: no hull to stand in for it
