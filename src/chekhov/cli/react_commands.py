@@ -1,7 +1,7 @@
 """The reactive executive's scenario benchmark: ``chekhov react``.
 
     chekhov react [--scenes SCENE...] [--episodes N] [--seed S] [--planners NAME...]
-                  [--budget-ms MS] [--free-compute] [--json] [--out FILE]
+                  [--budget-ms MS] [--free-compute | --compute-scale X] [--json] [--out FILE]
 
 Per scene: pick-and-place episodes (moves between objects' pre-grasp poses) on a simulated
 100 Hz clock, each with a person's forearm sweeping across (0.3-1.0 m/s, seen at 30 Hz with
@@ -9,7 +9,9 @@ Per scene: pick-and-place episodes (moves between objects' pre-grasp poses) on a
 exact checker against each obstacle's true pose (``chekhov.execute``). The executive's own
 compute is charged on the simulated clock: a step that runs past its 10 ms tick misses ticks,
 the arm goes on along the motion it had, and the step's reactions count from the first
-command after it (``--free-compute``: every step takes no time, as before 2026-11-27).
+command after it (``--free-compute``: every step takes no time, as before 2026-11-27;
+``--compute-scale X``: each step counts X times its wall time, as on a machine X times slower,
+e.g. a robot's onboard computer; the executive's wall-clock budgets are not scaled).
 
 Output: with ``--json`` one JSON object per scene and planner on stdout (keys: scene,
 planner, episodes, success_rate — goal reached within tolerance before the deadline, among
@@ -21,8 +23,8 @@ or a new plan), resolve_latency_ms_p50/_p95/_p99 (→ a motion to the goal that 
 replans_per_episode, safe_stops, dodges, holds, time_to_goal_ratio (median, against the
 episode's task alone: its goal changes, no forearm, no kick), limit_violations,
 overrun_steps (steps over a tick), undecided_checks (exact checks cut by their budget,
-answered safe), lag_rejoins (joins back onto a motion after one),
-compute_charged); else a table. ``--out`` also writes the JSON lines to a file (atomically).
+answered safe), lag_rejoins (joins back onto a motion after one), compute_charged,
+compute_scale); else a table. ``--out`` also writes the JSON lines to a file (atomically).
 """
 
 from __future__ import annotations
@@ -58,6 +60,9 @@ def _check(args: argparse.Namespace) -> None:
         except ChekhovError as e:
             raise ChekhovError(f"--planners: {e}") from e
     args.planners = names
+    if args.free_compute and args.compute_scale != 1.0:
+        raise ChekhovError("--compute-scale: has no effect with --free-compute (there every "
+                           "step takes no time)")
     if args.out is not None:
         args.out = checks.output_file(args.out, "--out")
 
@@ -74,7 +79,8 @@ def _cmd_react(args: argparse.Namespace) -> int:
                                           planning_budget_s=args.budget_ms / 1000,
                                           search_budget_s=None if args.free_compute else
                                           ExecutorConfig().search_budget_s),
-                         sim=SimConfig(charge_compute=not args.free_compute))
+                         sim=SimConfig(charge_compute=not args.free_compute,
+                                       compute_scale=args.compute_scale))
     t0 = time.perf_counter()
 
     def progress(message: str) -> None:
@@ -111,6 +117,13 @@ def _table_row(row: dict[str, object]) -> str:
             f"{row['limit_violations']}")
 
 
+def _scale(text: str) -> float:
+    v = checks.finite_float(text)
+    if not 0 < v <= 100:
+        raise argparse.ArgumentTypeError(f"must be > 0 and at most 100, got {v:g}")
+    return v
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     r = sub.add_parser("react", help="the reactive executive's scenario benchmark",
                        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -127,6 +140,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--free-compute", action="store_true",
                    help="do not charge the executive's own compute on the simulated clock, "
                         "nor bound its searches in wall time (deterministic but optimistic)")
+    r.add_argument("--compute-scale", type=_scale, default=1.0, metavar="X",
+                   help="count each step's compute X times its wall time, as on a machine X "
+                        "times slower (default 1; > 0, at most 100)")
     r.add_argument("--json", action="store_true", help="one JSON object per line")
     r.add_argument("--out", metavar="FILE", help="also write the JSON lines here")
     r.set_defaults(func=_cmd_react)

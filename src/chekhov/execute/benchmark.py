@@ -96,7 +96,8 @@ def run_one(world: World, planner: Planner, script: EpisodeScript, deadline_s: f
             config: ReactConfig) -> EpisodeRecord:
     """Run one script with a fresh executive."""
     worker = InlineWorker(world, planner, config.executor.timing)
-    executor = Executor(checking_world(world), worker, script.goal, config.executor)
+    executor = Executor(checking_world(world), worker, script.goal, config.executor,
+                        wall_scale=config.sim.compute_scale)
     executor.warmup()
     return run_episode(world, executor, script, deadline_s, config.sim)
 
@@ -215,6 +216,7 @@ def summarize(scene: str, planner: str, results: list[EpisodeResult | None],
         "overrun_steps": sum(w > dt for r in done for w in r.record.counters.step_wall_s),
         "lag_rejoins": sum(x.kind == "lag" for r in done for x in r.record.reactions),
         "compute_charged": config.sim.charge_compute,
+        "compute_scale": config.sim.compute_scale,
         "time_to_goal_ratio": float(np.median(ratios)) if ratios else None,
         "limit_violations": sum(r.check.limit_violations for r in done),
         "problem_episodes": [_problem(r) for r in done if r.check.collision

@@ -65,8 +65,12 @@ class Executor:
     """Tracks a goal with the motion it commands, reacting to what each tick reports."""
 
     def __init__(self, world: World, worker: Worker, goal: Goal,
-                 config: ExecutorConfig | None = None) -> None:
+                 config: ExecutorConfig | None = None, *, wall_scale: float = 1.0) -> None:
+        """``wall_scale``: a step's compute is counted this many times its wall time, as on
+        a machine that many times slower (a simulation's stress setting; the wall-clock
+        budgets are not scaled)."""
         self.world, self.worker, self.goal = world, worker, goal
+        self.wall_scale = wall_scale
         self.config = config if config is not None else ExecutorConfig()
         self.limits: Limits = joint_limits(world.robot.velocity_limit, self.config.timing)
         self.bounds = Bounds(world.robot.lower, world.robot.upper)
@@ -123,7 +127,8 @@ class Executor:
         s = self.motion.sample(t + dt)
         cmd = Command(t + dt, s.q, s.qd, s.qdd, self.motion.kind_at(t + dt))
         self._last = cmd
-        self.counters.step_wall_s.append(time.perf_counter() - wall0 - self._submit_wall)
+        wall = self.wall_scale * (time.perf_counter() - wall0 - self._submit_wall)
+        self.counters.step_wall_s.append(wall)
         return cmd
 
     def warmup(self) -> float:

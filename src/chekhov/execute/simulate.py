@@ -8,8 +8,8 @@ and goal changes arrive when scripted. The executed motion is recorded at the co
 The executive's own compute is charged on the clock (``SimConfig.charge_compute``): a step
 whose wall time (an inline worker's planning left out: that is charged by the worker) runs
 past its tick misses every tick until the first one after it ends. Meanwhile the control loop
-goes on commanding the motion the arm was following (the last one a step finished in time
-with), so the arm follows that. A reaction starts ahead of its tick
+goes on commanding the motion the arm was following (the one the step before ended with), so
+the arm follows that. A reaction starts ahead of its tick
 (``ExecutorConfig.reaction_lead_s``) on a motion unchanged until then, so a step that ends by
 then costs nothing; the reactions of one that ends later start no earlier than its end
 (``t_reacted`` and ``t_resolved`` moved on), and the executive sees the arm off its new
@@ -50,12 +50,16 @@ class SimConfig:
             limits is halved before it is dropped.
         charge_compute: a step's own wall time is charged on the clock (module docstring);
             False: every step takes no time (deterministic, but optimistic).
+        compute_scale: the executive's steps count this many times their wall time, as on a
+            machine that many times slower (:func:`~chekhov.execute.benchmark.run_one` builds
+            its executive with it; the wall-clock budgets are not scaled).
     """
 
     sensor_period_s: float = 1.0 / 30.0
     sensor_latency_s: float = 0.04
     kick_halvings: int = 4
     charge_compute: bool = True
+    compute_scale: float = 1.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -123,11 +127,13 @@ def run_episode(world: World, executor: Executor, script: EpisodeScript, deadlin
             following = executor.motion
             i += 1
             continue
-        # a kick: the loop joins back at once, unchecked (the step's checks are what overran)
-        following = executor.immediate_motion or following
-        assert following is not None
+        # meanwhile the loop commands what it had (after a kick: the join back, unchecked,
+        # at once — the step's checks are what overran); then what the step installed
+        meanwhile = executor.immediate_motion or following
+        assert meanwhile is not None
         _charge(executor.reactions, seen, t + missed * dt)
-        now = _follow(following, t, missed, dt, rows)
+        now = _follow(meanwhile, t, missed, dt, rows)
+        following = executor.motion
         q, qd, qdd = now.q.copy(), now.qd.copy(), now.qdd.copy()
         i += missed
     return EpisodeRecord(
