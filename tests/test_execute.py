@@ -343,24 +343,6 @@ def test_charged_compute_episodes_never_collide_and_stay_within_limits(world, pl
     assert reached >= 2
 
 
-def test_on_a_machine_four_times_slower_the_episode_a_ci_run_collided_in_stays_clear(
-        world, planner, limits):
-    """Episode 1 collided in a CI run (contact at 2.19 s in a chain of lags: steps over their
-    tick one after another). With each step's compute counted four times over it collided in
-    2 of 2 runs (and touched at three times) while the simulator, through the ticks a step
-    missed, kept the arm on the motion from before the last step that ended in time — past a
-    hold or brake that an overrunning step had installed; clear in 3 of 3 since."""
-    slow = replace(CHARGED, sim=replace(CHARGED.sim, compute_scale=4.0))
-    plain = run_one(world, planner, _script(world, 1), 20.0, slow)
-    ee = world.robot.compute_ee_poses(plain.q)[:, :3, 3]
-    script = make_script(world, 0, 1, plain.t_reached, ee, plain.q)
-    rec = run_one(world, planner, script, 3 * plain.t_reached + 4, slow)
-    check = evaluate_episode(world, rec, limits, 0.15)
-    assert not check.collision, f"contact at {check.first_contact_s} s"
-    assert check.limit_violations == 0, check.violation_kinds
-    assert rec.reached
-
-
 def test_a_step_that_overruns_its_tick_is_charged_on_the_clock(world, planner, limits):
     """Every step that changes the motion is made to take 35 ms (its measured wall time
     replaced): the arm follows the motion commanded before that step until the next step,
