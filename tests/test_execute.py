@@ -397,6 +397,21 @@ def test_a_step_that_overruns_its_tick_is_charged_on_the_clock(world, planner, l
     assert rec.reached
 
 
+def test_run_episode_refuses_an_executor_counted_at_another_scale(world, planner):
+    """A SimConfig that asks for 3x-slower compute with an executor that counts 1x would
+    silently simulate the fast machine: run_episode refuses it before the first tick."""
+    from chekhov.execute.executor import Executor
+    from chekhov.execute.simulate import run_episode
+    from chekhov.execute.worker import InlineWorker
+
+    script = _script(world, 0)
+    ex = Executor(world, InlineWorker(world, planner, CHARGED.executor.timing), script.goal,
+                  CHARGED.executor)
+    with pytest.raises(ValueError, match="wall_scale=3"):
+        run_episode(world, ex, script, 5.0, replace(CHARGED.sim, compute_scale=3.0))
+    assert ex.counters.step_wall_s == []
+
+
 def test_the_forearm_appears_clear_of_the_arm(world, planner):
     """Along three undisturbed motions, 20 scripts' forearms each appear at least 0.15 m from
     the arm by coal's distance (its whole body kept 0.3 m from the arm's skeleton: its centre

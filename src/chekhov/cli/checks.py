@@ -65,15 +65,22 @@ def finite_float(text: str) -> float:
     return _number(text)
 
 
-def seconds_in(high: float) -> Callable[[str], float]:
-    """An argparse type: a time limit in s, finite, > 0 and ≤ ``high``."""
+def number_in(low: float, high: float, what: str = "a number") -> Callable[[str], float]:
+    """An argparse type: a finite number, > ``low`` and ≤ ``high``."""
 
     def parse(text: str) -> float:
         v = _number(text)
-        if not 0 < v <= high:
-            raise argparse.ArgumentTypeError(f"must be a time in s, > 0 and ≤ {high:g}, got {v:g}")
+        if not low < v <= high:
+            raise argparse.ArgumentTypeError(f"must be {what}, > {low:g} and ≤ {high:g}, got {v:g}")
         return v
 
+    parse.__name__ = "number"
+    return parse
+
+
+def seconds_in(high: float) -> Callable[[str], float]:
+    """An argparse type: a time limit in s, finite, > 0 and ≤ ``high``."""
+    parse = number_in(0.0, high, "a time in s")
     parse.__name__ = "seconds"
     return parse
 

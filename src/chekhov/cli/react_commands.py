@@ -117,13 +117,6 @@ def _table_row(row: dict[str, object]) -> str:
             f"{row['limit_violations']}")
 
 
-def _scale(text: str) -> float:
-    v = checks.finite_float(text)
-    if not 0 < v <= 100:
-        raise argparse.ArgumentTypeError(f"must be > 0 and at most 100, got {v:g}")
-    return v
-
-
 def register(sub: argparse._SubParsersAction) -> None:
     r = sub.add_parser("react", help="the reactive executive's scenario benchmark",
                        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -140,7 +133,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--free-compute", action="store_true",
                    help="do not charge the executive's own compute on the simulated clock, "
                         "nor bound its searches in wall time (deterministic but optimistic)")
-    r.add_argument("--compute-scale", type=_scale, default=1.0, metavar="X",
+    r.add_argument("--compute-scale", type=checks.number_in(0.0, 100.0, "a factor"),
+                   default=1.0, metavar="X",
                    help="count each step's compute X times its wall time, as on a machine X "
                         "times slower (default 1; > 0, at most 100)")
     r.add_argument("--json", action="store_true", help="one JSON object per line")

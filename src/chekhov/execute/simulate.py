@@ -52,7 +52,8 @@ class SimConfig:
             False: every step takes no time (deterministic, but optimistic).
         compute_scale: the executive's steps count this many times their wall time, as on a
             machine that many times slower (:func:`~chekhov.execute.benchmark.run_one` builds
-            its executive with it; the wall-clock budgets are not scaled).
+            its executive with it; :func:`run_episode` refuses an executor built with another
+            ``wall_scale``; the wall-clock budgets are not scaled).
     """
 
     sensor_period_s: float = 1.0 / 30.0
@@ -90,6 +91,10 @@ def run_episode(world: World, executor: Executor, script: EpisodeScript, deadlin
     """Run ``script`` with ``executor`` (built for ``script.q_start``'s episode) until the goal
     is reached and every disturbance is over, or until ``deadline_s`` (s)."""
     config = config if config is not None else SimConfig()
+    if config.charge_compute and config.compute_scale != executor.wall_scale:
+        raise ValueError(f"SimConfig.compute_scale is {config.compute_scale:g} but the executor "
+                         f"counts its steps {executor.wall_scale:g}x: build it with "
+                         f"Executor(..., wall_scale={config.compute_scale:g})")
     dt = executor.config.control_dt_s
     q = np.array(script.q_start, dtype=float)
     qd = np.zeros_like(q)
