@@ -398,6 +398,13 @@ def test_moving_obstacles_keeps_compiled_entries_and_answers_with_the_new_pose(w
                             "other": (Shape("box", (0.1, 0.1, 0.1)), far)})
         assert not fast.is_valid(q)
         assert fast._entries == kept
+        # two of one kind: their arrays are only C-contiguous where one row was also
+        # Fortran-contiguous — the same numba type, so the entries stay
+        fast.set_obstacles({"probe": (Shape("sphere", (0.05,)), far),
+                            "other": (Shape("sphere", (0.05,)), T)})
+        assert fast._entries == kept       # before any check could have typed them again
+        assert not fast.is_valid(q)
     finally:
         fast.set_obstacles({})
+    assert fast._entries == kept
     assert fast.is_valid(q)

@@ -106,10 +106,11 @@ class FastChecker:
     # --- obstacles ----------------------------------------------------------------------
     def _pack_env(self) -> None:
         """Repack the obstacles. The compiled entry points stay when the new arrays have the
-        old ones' numba types (they always do: ``pack_primitives`` makes C-contiguous arrays
-        of fixed dtypes and dimensions): typing the packed world again, on the first call of
-        each kernel after every change, cost about 1 ms — 40% of the executive's control
-        step, which sets the obstacles several times a tick."""
+        old ones' numba types (they do: ``pack_primitives`` makes C-contiguous arrays of
+        fixed dtypes and dimensions, and :func:`_layout` compares them as numba types them):
+        typing the packed world again, on the first call of each kernel after every change,
+        cost about 1 ms — 40% of the executive's control step, which sets the obstacles
+        several times a tick."""
         before = _layout(self.packed)
         self.obstacles_version += 1
         self.packed = with_obstacles(
@@ -173,14 +174,14 @@ class FastChecker:
         """kernel(*args, self.packed), through the compiled version's entry point once it is
         known: numba's dispatch would type the packed world's ~50 arrays on every call (a few
         µs, as much as checking a configuration). Entry points are kept per kernel and per the
-        types of ``args`` (arrays: dtype, dimensions, contiguity, writability; others: their
+        types of ``args`` (arrays: dtype, dimensions, numba layout, writability; others: their
         Python type), and forgotten when the packed world's obstacle arrays change type
         (``_pack_env``)."""
         return self._run_in(self.packed, kernel, args)
 
     def _run_in(self, packed: PackedWorld, kernel: Any, args: tuple[Any, ...]) -> Any:
         """kernel(*args, packed) for a ``packed`` of :attr:`packed`'s numba type."""
-        key = (kernel, *[(a.dtype, a.ndim, a.flags.c_contiguous, a.flags.writeable)
+        key = (kernel, *[(a.dtype, a.ndim, _numba_layout(a), a.flags.writeable)
                          if isinstance(a, np.ndarray) else type(a) for a in args])
         entry = self._entries.get(key)
         if entry is None:
@@ -286,10 +287,18 @@ class FastChecker:
 
 def _layout(packed: PackedWorld) -> tuple[tuple[object, ...], ...]:
     """What numba's type of ``packed`` depends on in the arrays ``with_obstacles`` replaces:
-    each one's dtype, dimensions, contiguity, writability and alignment."""
-    return tuple((a.dtype, a.ndim, a.flags.c_contiguous, a.flags.f_contiguous,
-                  a.flags.writeable, a.flags.aligned)
+    each one's dtype, dimensions, layout (as numba reads it: "C" when C-contiguous, else "F"
+    when Fortran-contiguous, else "A"), writability and alignment. Not both contiguity flags:
+    an array of one row (one obstacle) or none is both, of two rows only C-contiguous, the same
+    numba type — telling them apart dropped the compiled entry points whenever the number of
+    obstacles crossed 1 (38 times in one react episode, each costing ~1-3 ms of typing)."""
+    return tuple((a.dtype, a.ndim, _numba_layout(a), a.flags.writeable, a.flags.aligned)
                  for prims in (packed.dynamic, packed.obstacles) for a in prims)
+
+
+def _numba_layout(a: np.ndarray) -> str:
+    """numba's layout letter of ``a`` (``numba.np.numpy_support.map_layout``)."""
+    return "C" if a.flags.c_contiguous else "F" if a.flags.f_contiguous else "A"
 
 
 def pinocchio_joint_placements(robot: Robot, q: Array) -> list[pin.SE3]:
