@@ -132,8 +132,9 @@ class Executor:
         return cmd
 
     def warmup(self) -> float:
-        """Load (on a fresh install: compile, ~0.3 s) the compiled kernels a reaction uses —
-        a stop's sampling and a motion's check against a packed snapshot of the obstacles —
+        """Load (on a fresh install: compile, ~1 s) the compiled kernels a reaction uses —
+        a stop's sampling, a brake's steps and a motion's check against a packed snapshot of
+        the obstacles —
         so that the first kick or conflict does not stall a tick. Changes nothing (the
         world's obstacles included); returns the time (s)."""
         t0 = time.perf_counter()
@@ -141,6 +142,7 @@ class Executor:
         stop = stop_from(State(q, 0.5 * self.limits.velocity, np.zeros_like(q)), 0.0,
                          self.limits, self.bounds)
         _, Q = stop.positions(0.0, stop.t_end, self.config.check_dt_s)
+        brake_along(stop, 0.0, self.limits)
         fast = self.world.fast
         fast.valid_in(fast.packed, Q)
         return time.perf_counter() - t0

@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 from ruckig import InputParameter, Result, Ruckig, Trajectory
 
+from chekhov.execute.brake_kernel import DONE, NEED_GRID, brake_steps
 from chekhov.execute.ruckig_batch import batch_sampler
 from chekhov.timing import Limits
 from chekhov.trajectory import JointTrajectory
@@ -358,27 +359,20 @@ class _Scaling:
 
 
 class _Grid:
-    """The braked motion's q̇ and q̈ on a grid of its own time every :data:`BRAKE_GRID_S`
-    from ``s0`` (filled in chunks of :data:`BRAKE_CHUNK_S` as needed), interpolated
-    linearly: a brake's steps need them at 300-odd times, one by one."""
+    """The braked motion's q̇ and q̈ (each (G, K)) on a grid of its own time every
+    :data:`BRAKE_GRID_S` from ``s0``, sampled in chunks of :data:`BRAKE_CHUNK_S` as the
+    brake's steps need them."""
 
     def __init__(self, motion: Motion, s0: float) -> None:
         self.motion, self.s0 = motion, s0
         k = len(motion.sample(s0).q)
         self.V, self.A = np.empty((0, k)), np.empty((0, k))
 
-    def at(self, s: float) -> State:
-        x = (s - self.s0) / BRAKE_GRID_S
-        i = int(x)
-        while i + 1 >= len(self.V):
-            n = len(self.V)
-            k = np.arange(n, n + round(BRAKE_CHUNK_S / BRAKE_GRID_S), dtype=float)
-            ts = self.s0 + BRAKE_GRID_S * k
-            _, V, A = self.motion.states_at(ts)
-            self.V, self.A = np.vstack([self.V, V]), np.vstack([self.A, A])
-        f = x - i
-        v = self.V[i] + f * (self.V[i + 1] - self.V[i])
-        return State(v, v, self.A[i] + f * (self.A[i + 1] - self.A[i]))
+    def extend(self) -> None:
+        n = len(self.V)
+        k = np.arange(n, n + round(BRAKE_CHUNK_S / BRAKE_GRID_S), dtype=float)
+        _, V, A = self.motion.states_at(self.s0 + BRAKE_GRID_S * k)
+        self.V, self.A = np.vstack([self.V, V]), np.vstack([self.A, A])
 
 
 def brake_along(motion: Motion, t0: float, limits: Limits) -> Motion:
@@ -386,49 +380,32 @@ def brake_along(motion: Motion, t0: float, limits: Limits) -> Motion:
     allow: s(t) with ṡ(t0) = 1 and s̈ ≤ 0, constant over each :data:`BRAKE_DT_S` step and the
     most negative keeping every joint's acceleration q̈(s) ṡ² + q̇(s) s̈ within
     :data:`BRAKE_SHARE` of its limit at the start of the step and :data:`BRAKE_END_SHARE` at
-    its end (q̇, q̈ the motion's own; a step is halved until it is). The commanded state is
-    the exact one of that scaling: positions on the motion's path (within the joint limits
-    where it is), velocity q̇ ṡ never above the motion's own."""
+    its end (q̇, q̈ the motion's own, interpolated on a grid; a step is halved until it is,
+    at most four times). The commanded state is the exact one of that scaling: positions on
+    the motion's path (within the joint limits where it is), velocity q̇ ṡ never above the
+    motion's own. The steps run compiled (:mod:`~chekhov.execute.brake_kernel`)."""
     a, end_a = limits.acceleration * BRAKE_SHARE, limits.acceleration * BRAKE_END_SHARE
-    t_end = motion.t_end
     grid = _Grid(motion, t0)
-    ts, ss, sds, sdds = [0.0], [t0], [1.0], []
-    s, sd = t0, 1.0
-    while sd > 0 and s < t_end:
-        sdd = _deceleration(grid.at(s), sd, a)
-        step = min(BRAKE_DT_S, sd / sdd) if sdd > 0 else BRAKE_DT_S
-        for _ in range(5):
-            s2 = min(s + sd * step - 0.5 * sdd * step * step, t_end)
-            sd2 = max(sd - sdd * step, 0.0)
-            if sdd == 0.0 or _within(grid.at(s2), sd2, sdd, end_a):
-                break
-            step *= 0.5
-        sdds.append(sdd)
-        ts.append(ts[-1] + step)
-        s, sd = s2, (0.0 if sd2 < 1e-9 or s2 >= t_end else sd2)
-        ss.append(s)
-        sds.append(sd)
-    sdds.append(0.0)
+    state = np.array([0.0, t0, 1.0])
+    rows, n = np.empty((512, 4)), 0
+    while True:
+        n, why = brake_steps(grid.V, grid.A, t0, BRAKE_GRID_S, motion.t_end,
+                             np.ascontiguousarray(a), np.ascontiguousarray(end_a), BRAKE_DT_S,
+                             state, rows, n)
+        if why == DONE:
+            break
+        if why == NEED_GRID:
+            grid.extend()
+        else:
+            rows = np.vstack([rows, np.empty_like(rows)])
+    done = rows[:n]
+    ts = np.concatenate([[0.0], done[:, 0]])
+    ss = np.concatenate([[t0], done[:, 1]])
+    sds = np.concatenate([[1.0], done[:, 2]])
     sds[-1] = 0.0
-    scaling = _Scaling(motion, np.array(ts), np.array(ss), np.array(sds), np.array(sdds))
+    sdds = np.concatenate([done[:, 3], [0.0]])
+    scaling = _Scaling(motion, ts, ss, sds, sdds)
     return Motion((Piece(t0, t0 + ts[-1], scaling.sample, "brake", scaling.batch),))
-
-
-def _within(m: State, sd: float, sdd: float, a: Array) -> bool:
-    """Whether q̈ ṡ² - q̇ s̈ is within ``a`` (K,) rad/s² at state ``m`` of the path."""
-    return bool(np.all(np.abs(m.qdd * sd * sd - m.qd * sdd) <= a))
-
-
-def _deceleration(m: State, sd: float, a: Array) -> float:
-    """The largest k ≥ 0 with |q̈ ṡ² - q̇ k| ≤ a (K,) for every joint (0 when none is)."""
-    moving = np.abs(m.qd) >= 1e-9
-    if not moving.any():
-        return 0.0
-    v, b, lim = m.qd[moving], m.qdd[moving] * sd * sd, a[moving]
-    k1, k2 = (b - lim) / v, (b + lim) / v
-    lo = max(float(np.minimum(k1, k2).max()), 0.0)
-    hi = float(np.maximum(k1, k2).min())
-    return hi if hi >= lo and np.isfinite(hi) else 0.0
 
 
 def stop_time(state: State, limits: Limits) -> float:
