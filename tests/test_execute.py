@@ -112,6 +112,41 @@ def test_brake_along_stays_on_the_path_and_stops_within_limits(world, limits):
     assert np.allclose(brake.sample(t0).qd, motion.sample(t0).qd, atol=1e-9)
 
 
+def test_brake_steps_resume_where_they_stopped(world, limits):
+    """The compiled brake steps give the same rows whether they run on a grid sampled all at
+    once with room for every row, or stop for more grid and more rows every few steps."""
+    from chekhov.execute.brake_kernel import DONE, FULL, NEED_GRID, brake_steps
+    from chekhov.execute.motion import BRAKE_DT_S, BRAKE_GRID_S, Motion
+
+    robot = world.robot
+    P = np.array([robot.lower * 0.2 + robot.upper * 0.8, robot.lower * 0.7 + robot.upper * 0.3])
+    z = np.zeros(robot.dof)
+    piece = ruckig_piece(State(P[0], z, z), State(P[1], z, z), 0.0, limits, "plan")
+    motion, t0 = Motion((piece,)), 0.4 * piece.t_end
+    _, V, A = motion.states_at(t0 + BRAKE_GRID_S * np.arange(int(2 / BRAKE_GRID_S)))
+    a, end_a = 0.85 * limits.acceleration, 0.95 * limits.acceleration
+
+    def run(grid_rows, row_room):
+        state, rows, n, g = np.array([0.0, t0, 1.0]), np.empty((row_room, 4)), 0, grid_rows
+        whys = set()
+        while True:
+            n, why = brake_steps(V[:g], A[:g], t0, BRAKE_GRID_S, motion.t_end, a, end_a,
+                                 BRAKE_DT_S, state, rows, n)
+            whys.add(why)
+            if why == DONE:
+                return rows[:n], whys
+            if why == NEED_GRID:
+                g += grid_rows
+            else:
+                rows = np.vstack([rows, np.empty_like(rows)])
+
+    whole, whys = run(len(V), 100_000)
+    assert whys == {DONE} and len(whole) > 20 and whole[-1, 2] == 0.0
+    pieces, whys = run(7, 3)
+    assert whys == {DONE, NEED_GRID, FULL}
+    assert np.array_equal(pieces, whole)
+
+
 def test_brake_along_a_stiff_join_keeps_every_acceleration_within_the_limits(world, limits):
     """A brake of a Ruckig join (20x the timing's jerk: its acceleration changes fast) commands
     the exact state of its time scaling: accelerations within the limits at every instant,
