@@ -376,6 +376,44 @@ def test_dense_path_check_near_contact_equals_every_configuration(world_of, scen
     assert seen[True] >= 5 and seen[False] >= 5, seen
 
 
+def test_repacked_obstacles_equal_packing_them_afresh(world_of):
+    """The packed obstacle arrays, which reuse the rows the obstacle list shares with the
+    last packing, equal packing the whole list again, through a random series of sets,
+    moves and removals (the scene's static obstacles first)."""
+    from chekhov.collision.primitives import pack_primitives
+
+    w = world_of("kitchen")
+    fast, rng = w.fast, np.random.default_rng(4)
+    shapes = [Shape("sphere", (0.05,)), Shape("box", (0.1, 0.2, 0.1)),
+              Shape("capsule", (0.04, 0.3))]
+
+    def pose():
+        T = np.eye(4)
+        T[:3, 3] = rng.uniform(-1, 1, 3)
+        return T
+
+    try:
+        for _ in range(40):
+            op = rng.integers(3)
+            names = fast.dynamic_obstacles
+            if op == 0 or not names:
+                fast.set_obstacles({f"o{i}": (shapes[rng.integers(3)], pose())
+                                    for i in rng.permutation(5)[:rng.integers(0, 5)]})
+            elif op == 1:
+                fast.move_obstacle(names[rng.integers(len(names))], pose())
+            else:
+                fast.remove_obstacle(names[rng.integers(len(names))])
+            prims = fast._obstacles
+            want_all = pack_primitives(prims.values())
+            want_dyn = pack_primitives(p for n, p in prims.items() if n in fast._dynamic)
+            for got, want in ((fast.packed.obstacles, want_all), (fast.packed.dynamic, want_dyn)):
+                for a, b in zip(got, want, strict=True):
+                    assert a.dtype == b.dtype and a.flags.c_contiguous
+                    assert np.array_equal(a, b)
+    finally:
+        fast.set_obstacles({})
+
+
 def test_moving_obstacles_keeps_compiled_entries_and_answers_with_the_new_pose(world_of):
     """Changing the dynamic obstacles repacks them without typing the packed world again
     (the compiled entry points are kept), and the kept entries read the new obstacles."""

@@ -26,7 +26,7 @@ from chekhov.collision.packed import (
     scene_obstacles,
     with_obstacles,
 )
-from chekhov.collision.primitives import Primitive, shape_primitive
+from chekhov.collision.primitives import PrefixPacker, Primitive, shape_primitive
 from chekhov.errors import RobotError
 from chekhov.robot.chain_kinematics import chain_fk
 from chekhov.robot.robot import Robot
@@ -100,6 +100,8 @@ class FastChecker:
         self._dynamic: set[str] = {n for n, (_, dyn) in obstacles.items() if dyn}
         self._scene_dynamic = frozenset(self._dynamic)   # set_obstacles keeps these
         self._entries: dict[Any, Any] = {}
+        self._layout = _layout(self.packed)
+        self._packers = (PrefixPacker(), PrefixPacker())
         self.obstacles_version = 0
         self.obstacle_names = list(self._obstacles)
 
@@ -111,14 +113,15 @@ class FastChecker:
         typing the packed world again, on the first call of each kernel after every change,
         cost about 1 ms — 40% of the executive's control step, which sets the obstacles
         several times a tick."""
-        before = _layout(self.packed)
         self.obstacles_version += 1
         self.packed = with_obstacles(
             self.packed, [self._obstacles[n] for n in self._obstacles if n in self._dynamic],
-            self._obstacles.values())
+            self._obstacles.values(), self._packers)
         self.obstacle_names = list(self._obstacles)
-        if _layout(self.packed) != before:
+        layout = _layout(self.packed)
+        if layout != self._layout:
             self._entries.clear()
+            self._layout = layout
 
     def add_obstacle(self, name: str, shape: Shape, T_world_obj: Array) -> None:
         """Add a dynamic obstacle; nothing else is rebuilt."""

@@ -24,6 +24,7 @@ from chekhov.collision import codes, validity
 from chekhov.collision.grid import DistanceGrid, build_grid, build_surface_grid, point_field
 from chekhov.collision.kernels import signed_distance, transform_points
 from chekhov.collision.primitives import (
+    PrefixPacker,
     Primitive,
     Primitives,
     cluster_primitives,
@@ -195,11 +196,15 @@ class PackedWorld(NamedTuple):
 
 
 def with_obstacles(world: PackedWorld, dynamic: Iterable[Primitive],
-                   obstacles: Iterable[Primitive]) -> PackedWorld:
+                   obstacles: Iterable[Primitive],
+                   packers: tuple[PrefixPacker, PrefixPacker] | None = None) -> PackedWorld:
     """``world`` with new dynamic obstacles and obstacle list (all obstacles, static ones
-    included, in name order); nothing else is rebuilt."""
-    return world._replace(dynamic=pack_primitives(dynamic),
-                          obstacles=pack_primitives(obstacles))
+    included, in name order); nothing else is rebuilt. ``packers`` (one for each list) reuse
+    what the lists share with their last call's."""
+    if packers is None:
+        return world._replace(dynamic=pack_primitives(dynamic),
+                              obstacles=pack_primitives(obstacles))
+    return world._replace(dynamic=packers[0].pack(dynamic), obstacles=packers[1].pack(obstacles))
 
 
 def scene_obstacles(scene: Scene | None, static_only: bool = False

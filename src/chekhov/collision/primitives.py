@@ -190,6 +190,31 @@ def pack_primitives(prims: Iterable[Primitive]) -> Primitives:
         size=size, bound=bounding_radius(kind, size))
 
 
+class PrefixPacker:
+    """:func:`pack_primitives` for lists that keep a long prefix from one call to the next
+    (a checker's obstacles: the scene's, then the few dynamic ones set each sensor frame):
+    the rows of the longest prefix of the same :class:`Primitive` objects (``is``) as the last
+    call's are reused and only the rest is packed (the kitchen's 66 obstacles were packed
+    again several times a control step). The arrays returned are new ones, never changed."""
+
+    def __init__(self) -> None:
+        self._prims: list[Primitive] = []
+        self._packed = pack_primitives([])
+
+    def pack(self, prims: Iterable[Primitive]) -> Primitives:
+        prims = list(prims)
+        old, n = self._prims, 0
+        while n < min(len(old), len(prims)) and old[n] is prims[n]:
+            n += 1
+        if n == len(old) == len(prims):
+            return self._packed
+        tail = pack_primitives(prims[n:])
+        packed = Primitives(*(np.concatenate([a[:n], b])
+                              for a, b in zip(self._packed, tail, strict=True)))
+        self._prims, self._packed = prims, packed
+        return packed
+
+
 def bounding_radius(kind: NDArray[np.int64], size: Array) -> Array:
     """Radius (m) of a sphere about each primitive's origin that contains it."""
     r = size[:, 0].copy()
