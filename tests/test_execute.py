@@ -116,7 +116,13 @@ def test_brake_steps_resume_where_they_stopped(world, limits):
     """The compiled brake steps give the same rows whether they run on a grid sampled all at
     once with room for every row, or stop for more grid and more rows every few steps."""
     from chekhov.execute.brake_kernel import DONE, FULL, NEED_GRID, brake_steps
-    from chekhov.execute.motion import BRAKE_DT_S, BRAKE_GRID_S, Motion
+    from chekhov.execute.motion import (
+        BRAKE_DT_S,
+        BRAKE_END_SHARE,
+        BRAKE_GRID_S,
+        BRAKE_SHARE,
+        Motion,
+    )
 
     robot = world.robot
     P = np.array([robot.lower * 0.2 + robot.upper * 0.8, robot.lower * 0.7 + robot.upper * 0.3])
@@ -124,7 +130,7 @@ def test_brake_steps_resume_where_they_stopped(world, limits):
     piece = ruckig_piece(State(P[0], z, z), State(P[1], z, z), 0.0, limits, "plan")
     motion, t0 = Motion((piece,)), 0.4 * piece.t_end
     _, V, A = motion.states_at(t0 + BRAKE_GRID_S * np.arange(int(2 / BRAKE_GRID_S)))
-    a, end_a = 0.85 * limits.acceleration, 0.95 * limits.acceleration
+    a, end_a = BRAKE_SHARE * limits.acceleration, BRAKE_END_SHARE * limits.acceleration
 
     def run(grid_rows, row_room):
         state, rows, n, g = np.array([0.0, t0, 1.0]), np.empty((row_room, 4)), 0, grid_rows

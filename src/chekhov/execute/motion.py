@@ -384,14 +384,14 @@ def brake_along(motion: Motion, t0: float, limits: Limits) -> Motion:
     at most four times). The commanded state is the exact one of that scaling: positions on
     the motion's path (within the joint limits where it is), velocity q̇ ṡ never above the
     motion's own. The steps run compiled (:mod:`~chekhov.execute.brake_kernel`)."""
-    a, end_a = limits.acceleration * BRAKE_SHARE, limits.acceleration * BRAKE_END_SHARE
+    a = np.ascontiguousarray(limits.acceleration * BRAKE_SHARE)
+    end_a = np.ascontiguousarray(limits.acceleration * BRAKE_END_SHARE)
     grid = _Grid(motion, t0)
     state = np.array([0.0, t0, 1.0])
     rows, n = np.empty((512, 4)), 0
     while True:
-        n, why = brake_steps(grid.V, grid.A, t0, BRAKE_GRID_S, motion.t_end,
-                             np.ascontiguousarray(a), np.ascontiguousarray(end_a), BRAKE_DT_S,
-                             state, rows, n)
+        n, why = brake_steps(grid.V, grid.A, t0, BRAKE_GRID_S, motion.t_end, a, end_a,
+                             BRAKE_DT_S, state, rows, n)
         if why == DONE:
             break
         if why == NEED_GRID:
