@@ -11,7 +11,7 @@ import pytest
 from chekhov.cli import main
 from chekhov.collision.path_check import exact_path_decision
 from chekhov.execute.benchmark import ReactConfig, executive_planner, run_one
-from chekhov.execute.evade import Evader, EvadeSettings
+from chekhov.execute.evade import STOP_APART_RAD, Evader, EvadeSettings
 from chekhov.execute.evaluate import TrueWorld, evaluate_episode, limit_violations
 from chekhov.execute.interface import ExecutorConfig
 from chekhov.execute.motion import (
@@ -572,7 +572,7 @@ def test_the_dodge_is_the_nearest_target_whose_move_is_safe_sample_by_sample(wor
     now = State(q0, z, z)
     move = evader().dodge(now, t0, {})
     reference = evader()
-    targets = reference.targets(q0, t0)
+    targets = reference.targets(now, t0)
     packs = reference.windows(t0, {})
     expected = None
     for q_r in targets:
@@ -595,6 +595,38 @@ def test_the_dodge_is_the_nearest_target_whose_move_is_safe_sample_by_sample(wor
     assert expected is not None and move is not None, (expected, move)
     assert np.allclose(move.end.q, expected, atol=1e-9)
     assert float(np.abs(expected - q0).max()) > 0.0     # a dodge that moves
+
+
+def test_a_fast_arm_dodges_around_where_it_stops(world, planner, limits):
+    """The arm at its fastest along an undisturbed plan, and a ball (0.6 m/s) that reaches
+    the wrist of the configuration where braking stops it just as it stops: stopping hits the
+    ball, and the dodge targets around the arm ask it to turn back through it (none of them
+    is safe here: checked), so the dodge comes from the targets around the stop. It is
+    within the limits and free of the ball's true motion at every tick for 3 s."""
+    from chekhov.execute.evaluate import TrueWorld
+    from chekhov.execute.obstacles import obstacles_at
+    plain = run_one(world, planner, _script(world, 1), 20.0, CONFIG)
+    k = int(np.argmax(np.abs(plain.qd / limits.velocity).max(axis=1)))
+    now, t0 = State(plain.q[k], plain.qd[k], plain.qdd[k]), 0.5
+    stop = stop_from(now, t0, limits)
+    wrist = world.robot.compute_joint_placements(stop.end.q)[5, :3, 3]
+    d, speed = np.array([-1.0, 0.0, 0.0]), 0.6
+    ball = MovingObstacle("ball", Shape("sphere", (0.05,)), np.eye(3),
+                          wrist - speed * stop.t_end * d,
+                          wrist + speed * (4.0 - stop.t_end) * d, 0.0, speed)
+    tracks = ObstacleTracks()
+    for stamp in (t0 - 1 / 30, t0):
+        tracks.update(obstacles_at((ball,), stamp), stamp)
+    truth = TrueWorld(world, (ball,))
+    ts = np.arange(t0, t0 + 3.0, DT)
+    assert any(truth.collides(stop.sample(float(t)).q, float(t)) for t in ts)
+    evader = _seeded_evader(world, tracks, limits)
+    assert float(np.abs(evader.stop_point(now, t0) - now.q).max()) > STOP_APART_RAD
+    move = evader.dodge(now, t0, {})
+    assert move is not None
+    Q = move.states_at(ts)[0]
+    assert world.robot.within_limits(Q).all()
+    assert not any(truth.collides(q, float(t)) for q, t in zip(Q, ts, strict=True))
 
 
 def test_a_dodge_search_cut_at_its_deadline_goes_on_to_the_same_answer(world, limits,

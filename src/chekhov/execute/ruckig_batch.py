@@ -30,7 +30,7 @@ def batch_sampler(traj: Any) -> Callable[[Array], tuple[Array, Array, Array]] | 
     if any(p.accel.duration > 0.0 for p in profiles):
         return None
     K = len(profiles)
-    T = np.array([np.cumsum(p.t) for p in profiles], dtype=float).reshape(K, 7)
+    T = np.cumsum(np.array([p.t for p in profiles], dtype=float).reshape(K, 7), axis=1)
     P = np.array([[p.p, p.v, p.a, [*p.j, 0.0]] for p in profiles],
                  dtype=float).reshape(K, 4, 8)
     B = np.array([[list(p.brake.t), list(p.brake.p), list(p.brake.v), list(p.brake.a),
