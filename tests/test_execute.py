@@ -11,7 +11,7 @@ import pytest
 from chekhov.cli import main
 from chekhov.collision.path_check import exact_path_decision
 from chekhov.execute.benchmark import ReactConfig, executive_planner, run_one
-from chekhov.execute.evade import STOP_APART_RAD, Evader, EvadeSettings
+from chekhov.execute.evade import DODGE_CANDIDATES, STOP_APART_RAD, Evader, EvadeSettings
 from chekhov.execute.evaluate import TrueWorld, evaluate_episode, limit_violations
 from chekhov.execute.interface import ExecutorConfig
 from chekhov.execute.motion import (
@@ -600,9 +600,9 @@ def test_the_dodge_is_the_nearest_target_whose_move_is_safe_sample_by_sample(wor
 def test_a_fast_arm_dodges_around_where_it_stops(world, planner, limits):
     """The arm at its fastest along an undisturbed plan, and a ball (0.6 m/s) that reaches
     the wrist of the configuration where braking stops it just as it stops: stopping hits the
-    ball, and the dodge targets around the arm ask it to turn back through it (none of them
-    is safe here: checked), so the dodge comes from the targets around the stop. It is
-    within the limits and free of the ball's true motion at every tick for 3 s."""
+    ball, and the dodge targets around the arm ask it to turn back through it: the dodge
+    comes from the targets around the stop, which follow them. It is within the limits and
+    free of the ball's true motion at every tick for 3 s."""
     from chekhov.execute.evaluate import TrueWorld
     from chekhov.execute.obstacles import obstacles_at
     plain = run_one(world, planner, _script(world, 1), 20.0, CONFIG)
@@ -624,6 +624,11 @@ def test_a_fast_arm_dodges_around_where_it_stops(world, planner, limits):
     assert float(np.abs(evader.stop_point(now, t0) - now.q).max()) > STOP_APART_RAD
     move = evader.dodge(now, t0, {})
     assert move is not None
+    reference = _seeded_evader(world, tracks, limits)
+    targets = reference.targets(now, t0)
+    around_arm = DODGE_CANDIDATES + len(reference.directed(now.q, t0))
+    picked = np.flatnonzero(np.abs(targets - move.end.q).max(axis=1) < 1e-9)
+    assert len(picked) > 0 and picked[0] >= around_arm, (picked, around_arm)
     Q = move.states_at(ts)[0]
     assert world.robot.within_limits(Q).all()
     assert not any(truth.collides(q, float(t)) for q, t in zip(Q, ts, strict=True))

@@ -346,7 +346,7 @@ class Evader:
     def stop_point(self, now: State, t0: float) -> Array:
         """(K,) rad: where the arm stops from ``now`` braking each joint at once within the
         limits and bounds (``now.q`` itself at rest)."""
-        if not np.abs(now.qd).any() and not np.abs(now.qdd).any():
+        if not now.qd.any() and not now.qdd.any():
             return now.q
         stop = stop_from(now, t0, self.limits, self.bounds)
         return np.clip(stop.end.q, self.world.robot.lower, self.world.robot.upper)
