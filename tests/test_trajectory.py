@@ -109,6 +109,28 @@ def test_a_path_shorter_than_the_grid_merge_step_is_timed_by_toppra(length):
     _assert_within_limits(timed.trajectory, np.random.default_rng(0))
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_the_compiled_toppra_matches_the_toppra_package(seed):
+    # the same problem (grid, blends, limits) solved by chekhov.topp_kernel and by the toppra
+    # package's LP solver: the same speeds at every grid point (durations before the final
+    # check on the interpolant agree to ~1e-6; that check may slow either by ~1e-5)
+    rng = np.random.default_rng(seed)
+    limits = joint_limits(rng.uniform(0.5, 4.0, 7), TimingConfig(
+        acceleration_limit=tuple(rng.uniform(1.0, 6.0, 7))))
+    for scale in (0.02, 0.3, 1.0):
+        P = np.cumsum(rng.normal(scale=scale, size=(int(rng.integers(2, 9)), 7)), axis=0)
+        ours, theirs = (time_parameterize(P, NAMES, limits, TimingConfig(toppra_solver=solver))
+                        .trajectory for solver in ("compiled", "library"))
+        assert ours.duration == pytest.approx(theirs.duration, rel=1e-4), (scale, P)
+        assert ours.duration > 0.0
+        for t in np.linspace(0.0, 1.0, 11):
+            q_ours, qd_ours, _ = ours.sample(t * ours.duration)
+            q_theirs, qd_theirs, _ = theirs.sample(t * theirs.duration)
+            assert np.allclose(q_ours, q_theirs, atol=1e-4), (scale, t)
+            assert np.allclose(qd_ours, qd_theirs, atol=1e-3 * limits.velocity.max()), (scale, t)
+        _assert_within_limits(ours, rng, limits)
+
+
 def test_a_reversal_rests_at_the_corner_and_a_straight_corner_is_passed():
     a, b = np.zeros(7), np.full(7, 0.4)
     back = np.array([a, b, a])                          # turns by pi: cannot be rounded
@@ -254,6 +276,8 @@ def test_an_unreadable_file_or_config_says_so(tmp_path):
         TimingConfig(method="linear")
     with pytest.raises(TrajectoryError, match=r"TimingConfig\.blend_deviation_rad"):
         TimingConfig(blend_deviation_rad=-0.1)
+    with pytest.raises(TrajectoryError, match=r"TimingConfig\.toppra_solver"):
+        TimingConfig(toppra_solver="seidel")
     with pytest.raises(TrajectoryError, match=r"TimingConfig\.acceleration_limit: 2 values"):
         joint_limits(BAXTER_VELOCITY, TimingConfig(acceleration_limit=(1.0, 2.0)))
     with pytest.raises(TrajectoryError, match=r"path: expected a finite \(T, 7\)"):

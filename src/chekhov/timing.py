@@ -3,9 +3,10 @@
 acceleration (rad/s²) and, for ruckig, jerk (rad/s³) limits, with two field libraries:
 
 * ``"toppra"`` (default): TOPP-RA (Pham & Pham 2018), the time-optimal parameterisation under
-  velocity and acceleration limits along the waypoints' polyline with each corner rounded by a
-  circular arc (Kunz & Stilman 2012, the blends MoveIt's time-optimal parameterisation uses):
-  :class:`BlendedPolyline`. Every configuration of the arc is within
+  velocity and acceleration limits (solved by :mod:`chekhov.topp_kernel`, or by the toppra
+  package: ``TimingConfig.toppra_solver``) along the waypoints' polyline with each corner
+  rounded by a circular arc (Kunz & Stilman 2012, the blends MoveIt's time-optimal
+  parameterisation uses): :class:`BlendedPolyline`. Every configuration of the arc is within
   ``TimingConfig.blend_deviation_rad`` (joint-space L2, rad) of the corner waypoint it rounds,
   so **the trajectory stays within that distance of the certified polyline** (and on it along
   the straight parts); the motion does not stop at corners. A corner turned too sharply for an
@@ -36,16 +37,16 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
-import toppra.algorithm  # imported with chekhov (0.26 s), not in a planner's first answer
-import toppra.constraint
 from numpy.typing import NDArray
 from ruckig import InputParameter, Result, Ruckig, Trajectory
 
 from chekhov.errors import TrajectoryError
+from chekhov.topp_kernel import path_speeds
 from chekhov.trajectory import JointTrajectory, hermite_accelerations
 
 Array = NDArray[np.float64]
 METHODS = ("toppra", "ruckig")
+TOPPRA_SOLVERS = ("compiled", "library")
 MIN_BLEND_RADIUS_RAD = 1e-3
 """rad: a corner whose arc would be tighter than this is not rounded; the motion rests there."""
 STRAIGHT_RAD = 1e-6
@@ -75,6 +76,9 @@ class TimingConfig:
         gridpoints: toppra's discretisation of the path (at least this many points).
         blend_deviation_rad: toppra: the largest joint-space distance (L2, rad) of a rounded
             corner from its waypoint; 0 rests at every corner.
+        toppra_solver: "compiled" (:mod:`chekhov.topp_kernel`: TOPP-RA for these limits,
+            exact per stage, ~20 times faster) or "library" (the toppra package's solver).
+            The same grid and scheme; durations agree to ~1e-6 (``tests/test_trajectory.py``).
     """
 
     method: str = "toppra"
@@ -84,11 +88,15 @@ class TimingConfig:
     knot_dt_s: float = 0.005
     gridpoints: int = 100
     blend_deviation_rad: float = 0.02
+    toppra_solver: str = "compiled"
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
             raise TrajectoryError(f"TimingConfig.method: {self.method!r}, expected one of "
                                   f"{list(METHODS)}")
+        if self.toppra_solver not in TOPPRA_SOLVERS:
+            raise TrajectoryError(f"TimingConfig.toppra_solver: {self.toppra_solver!r}, "
+                                  f"expected one of {list(TOPPRA_SOLVERS)}")
         for name in ("acceleration_limit", "jerk_limit", "knot_dt_s"):
             v = getattr(self, name)
             if isinstance(v, list | np.ndarray):
@@ -369,7 +377,6 @@ class BlendedPolyline:
 def _toppra(P: Array, names: tuple[str, ...], limits: Limits, config: TimingConfig
             ) -> JointTrajectory:
     """Time-optimal along the blended polyline, at rest where a corner cannot be rounded."""
-    logging.getLogger("toppra").setLevel(logging.ERROR)   # its INFO lines on every call
     stops = np.flatnonzero(corners(P, config.blend_deviation_rad).stops) + 1
     bounds = [0, *stops.tolist(), len(P) - 1]
     pieces = [_toppra_piece(BlendedPolyline(P[a:b + 1], config.blend_deviation_rad), limits,
@@ -382,20 +389,34 @@ def _toppra_piece(path: BlendedPolyline, limits: Limits, config: TimingConfig
     """(times (N,) s, positions (N, K) rad, velocities (N, K) rad/s) of the time-optimal
     rest-to-rest motion along ``path``."""
     grid = path.gridpoints(config.gridpoints)
+    if config.toppra_solver == "compiled":
+        sd = path_speeds(grid, path(grid, 1), path(grid, 2), limits.velocity,
+                         limits.acceleration)
+    else:
+        sd = _library_speeds(path, grid, limits)
+    if sd is None:
+        raise TrajectoryError("toppra found no parameterisation within the limits")
+    return _stage_knots(path, grid, np.maximum(np.asarray(sd, dtype=float), 0.0),
+                        config.knot_dt_s)
+
+
+def _library_speeds(path: BlendedPolyline, grid: Array, limits: Limits) -> Array | None:
+    """The toppra package's path speeds (N,) rad/s at the grid, None when it finds none."""
+    import toppra.algorithm  # 0.26 s: only for this solver
+    import toppra.constraint
+
     constraints = [
         toppra.constraint.JointVelocityConstraint(
             np.column_stack([-limits.velocity, limits.velocity])),
         toppra.constraint.JointAccelerationConstraint(
             np.column_stack([-limits.acceleration, limits.acceleration]))]
+    logging.getLogger("toppra").setLevel(logging.ERROR)   # its INFO lines on every call
     try:
         algo = toppra.algorithm.TOPPRA(constraints, path, gridpoints=grid)
         _, sd, _ = algo.compute_parameterization(0.0, 0.0)
     except Exception as e:   # toppra's numerics (a failed LP)
         raise TrajectoryError(f"toppra failed: {type(e).__name__}: {e}") from e
-    if sd is None:
-        raise TrajectoryError("toppra found no parameterisation within the limits")
-    return _stage_knots(path, grid, np.maximum(np.asarray(sd, dtype=float), 0.0),
-                        config.knot_dt_s)
+    return None if sd is None else np.asarray(sd, dtype=float)
 
 
 def _stage_knots(path: BlendedPolyline, grid: Array, sd: Array, dt: float
