@@ -150,6 +150,11 @@ class Motion:
     def states_at(self, ts: Array) -> tuple[Array, Array, Array]:
         """(q, q̇, q̈), each (N, K), at clock times ts (N,) s (like :meth:`sample`; after the
         end at rest at its last position)."""
+        after = ts > self.t_end
+        if len(self.pieces) == 1:   # a dodge, stop or plan: no piece to tell apart
+            q, qd, qdd = self.pieces[0].states(ts)
+            qd[after], qdd[after] = 0.0, 0.0
+            return q, qd, qdd
         k = len(self.pieces[0].sample(0.0).q)
         out = (np.empty((len(ts), k)), np.zeros((len(ts), k)), np.zeros((len(ts), k)))
         done = np.zeros(len(ts), dtype=bool)
@@ -161,7 +166,6 @@ class Motion:
                 for a, b in zip(out, p.states(ts[m]), strict=True):
                     a[m] = b
                 done |= m
-        after = ts > self.t_end
         out[1][after], out[2][after] = 0.0, 0.0
         return out
 

@@ -24,18 +24,26 @@ Array = NDArray[np.float64]
 def batch_sampler(traj: Any) -> Callable[[Array], tuple[Array, Array, Array]] | None:
     """(q, q̇, q̈ at times ts (N,) s, each (N, K)) of ``traj`` (a ``ruckig.Trajectory``), or
     None for what it does not cover (several sections, an acceleration pre-phase)."""
-    if len(traj.profiles) != 1:
+    sections = traj.profiles   # a copy of every profile: read once
+    if len(sections) != 1:
         return None
-    profiles = traj.profiles[0]
-    if any(p.accel.duration > 0.0 for p in profiles):
-        return None
+    profiles = sections[0]
     K = len(profiles)
-    T = np.cumsum(np.array([p.t for p in profiles], dtype=float).reshape(K, 7), axis=1)
-    P = np.array([[p.p, p.v, p.a, [*p.j, 0.0]] for p in profiles],
-                 dtype=float).reshape(K, 4, 8)
-    B = np.array([[list(p.brake.t), list(p.brake.p), list(p.brake.v), list(p.brake.a),
-                   list(p.brake.j)] for p in profiles], dtype=float).reshape(K, 5, 2)
-    Bd = np.array([p.brake.duration for p in profiles], dtype=float)
+    rows: list[float] = []   # per joint: 7 phase durations, then p, v, a (8 each), j (7), 0
+    B = np.zeros((K, 5, 2))
+    Bd = np.zeros(K)
+    for k, p in enumerate(profiles):
+        if p.accel.duration > 0.0:
+            return None
+        rows += p.t + p.p + p.v + p.a + p.j
+        rows.append(0.0)
+        brake = p.brake   # each attribute read copies it: once (most moves have none)
+        if brake.duration > 0.0:
+            Bd[k] = brake.duration
+            B[k] = (brake.t, brake.p, brake.v, brake.a, brake.j)
+    flat = np.array(rows, dtype=float).reshape(K, 39)
+    T = np.cumsum(flat[:, :7], axis=1)
+    P = np.ascontiguousarray(flat[:, 7:].reshape(K, 4, 8))
 
     def sample(ts: Array) -> tuple[Array, Array, Array]:
         return _states(np.asarray(ts, dtype=float).reshape(-1), T, P, B, Bd)
