@@ -41,6 +41,7 @@ from numpy.typing import NDArray
 from ruckig import InputParameter, Result, Ruckig, Trajectory
 
 from chekhov.errors import TrajectoryError
+from chekhov.polyline_kernel import nearest_segments
 from chekhov.topp_kernel import path_speeds
 from chekhov.trajectory import JointTrajectory, hermite_accelerations
 
@@ -221,18 +222,9 @@ def polyline_offsets(Q: Array, P: Array) -> tuple[NDArray[np.int64], Array]:
     Q, P = np.atleast_2d(Q), np.atleast_2d(P)
     if len(P) == 1:
         return np.zeros(len(Q), dtype=np.int64), np.linalg.norm(Q - P[0], axis=1)
-    a, d = P[:-1], np.diff(P, axis=0)                              # (S, K)
-    dd = np.maximum(np.einsum("sk,sk->s", d, d), 1e-300)
-    seg = np.zeros(len(Q), dtype=np.int64)
-    best = np.full(len(Q), np.inf)
-    for i in range(0, len(Q), 512):                                # bounded memory
-        q = Q[i:i + 512]
-        t = np.clip(np.einsum("nsk,sk->ns", q[:, None, :] - a[None], d) / dd, 0.0, 1.0)
-        gap = q[:, None, :] - (a[None] + t[..., None] * d[None])   # (n, S, K)
-        g2 = np.einsum("nsk,nsk->ns", gap, gap)
-        seg[i:i + 512] = np.argmin(g2, axis=1)
-        best[i:i + 512] = np.sqrt(g2.min(axis=1))
-    return seg, best
+    seg, dist = nearest_segments(np.ascontiguousarray(Q, dtype=float),
+                                 np.ascontiguousarray(P, dtype=float))
+    return seg, dist
 
 
 def _distinct(P: Array) -> Array:
@@ -350,16 +342,24 @@ class BlendedPolyline:
         step = min(GRID_STEP_RAD, self.length / at_least)
         arc_end = self.arc_s0 + self.arc_len
         ends = np.unique(np.concatenate([self.line_s0, self.arc_s0, arc_end, [self.length]]))
-        parts = []
-        for a, b in itertools.pairwise(ends):
-            j = np.flatnonzero(np.abs(self.arc_s0 - a) <= 1e-12)
-            turns = int(np.ceil(self.arc_angle[j[0]] / ARC_STEP_RAD)) if len(j) else 1
-            parts.append(np.linspace(a, b, max(int(np.ceil((b - a) / step)), turns) + 1))
-            if not len(j) and b - a > 2 * GRADED_FROM_RAD:
-                k = np.arange(int(np.log2((b - a) / 2 / GRADED_FROM_RAD)) + 1)
-                g = GRADED_FROM_RAD * 2.0 ** k                   # all <= (b - a) / 2
-                parts.append(np.concatenate([a + g, b - g]))
-        grid = np.unique(np.concatenate(parts))
+        a, b = ends[:-1], ends[1:]                               # the pieces, in order
+        starts_arc = np.abs(self.arc_s0[None, :] - a[:, None]) <= 1e-12
+        on_arc = starts_arc.any(axis=1)
+        turns = np.where(on_arc, np.ceil(self.arc_angle[np.argmax(starts_arc, axis=1)]
+                                         / ARC_STEP_RAD) if len(self.arc_s0) else 1, 1)
+        # each piece's np.linspace(a, b, n), n = its steps + 1, all at once (the same values)
+        n = np.maximum(np.ceil((b - a) / step), turns).astype(np.int64) + 1
+        piece = np.repeat(np.arange(len(a)), n)
+        i = np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)
+        even = i * ((b - a) / (n - 1))[piece] + a[piece]
+        even[np.cumsum(n) - 1] = b
+        # graded points from either end of each line longer than 2 GRADED_FROM_RAD
+        line = ~on_arc & (b - a > 2 * GRADED_FROM_RAD)
+        m = np.zeros(len(a), dtype=np.int64)
+        m[line] = np.log2((b - a)[line] / 2 / GRADED_FROM_RAD).astype(np.int64) + 1
+        owner = np.repeat(np.arange(len(a)), m)
+        g = GRADED_FROM_RAD * 2.0 ** (np.arange(m.sum()) - np.repeat(np.cumsum(m) - m, m))
+        grid = np.unique(np.concatenate([even, a[owner] + g, b[owner] - g]))  # g <= (b - a) / 2
         # corners that turn by 1e-6..1e-2 rad between even segments leave lines of 1e-7..1e-5
         # rad between their arcs: grid points that close made stages of ~1e-7 s whose
         # rounding the interpolant read as huge accelerations, and within_limits slowed whole
