@@ -85,9 +85,9 @@ def test_shortcut_is_a_valid_subsequence_and_never_longer(world, planner):
     assert seeded >= 4, f"{seeded} of 5 seeded"
 
 
-def _check_every_pair(fast, A, B, saved, resolution):
+def _check_every_pair(fast, A, B, saved, resolution, deadline=np.inf):
     """The round's choice as partial_shortcut used to make it: every drawn pair checked in
-    one batch, the free one that saves the most (first on ties), or -1."""
+    one batch, the free one that saves the most (first on ties), or -1 (no deadline)."""
     ok = (saved > 1e-6) & fast.motions_valid(A, B, resolution)
     return int(np.argmax(np.where(ok, saved, -np.inf))) if ok.any() else -1
 

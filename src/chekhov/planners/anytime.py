@@ -11,15 +11,17 @@ every solution with the time it came.
 The first offer is always certified at once (it is the answer to fall back on). When nobody
 listens (no ``on_solution``), a later offer without a certificate of its own waits as the
 candidate instead, and the candidates still standing at the end are certified shortest
-first until one passes: an intermediate path that a later stage beats is checked only when
-every shorter one fails (the exact check is the largest cost of an improvement; measured: 29%
-of Roadmap + TrajOpt's time on the shelf), and a shorter candidate that fails does not cost
-the answer the longer one it displaced.
+first until one passes (by :data:`FINAL_CHECK_RESERVE_S` before the time limit): an
+intermediate path that a later stage beats is checked only when every shorter one fails
+(the exact check is the largest cost of an improvement; measured: 29% of Roadmap + TrajOpt's
+time on the shelf), and a shorter candidate that fails does not cost the answer the longer
+one it displaced.
 """
 
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
@@ -36,6 +38,10 @@ if TYPE_CHECKING:
     from chekhov.world import World
 
 Array = NDArray[np.float64]
+
+FINAL_CHECK_RESERVE_S = 5e-4
+"""s: the waiting candidates are certified by this long before the time limit, so that the
+final check of the answer (``certify``: 0.2-0.5 ms with its certificate) fits before it."""
 
 
 class _Candidate(NamedTuple):
@@ -105,9 +111,11 @@ class AnytimeRun:
 
     def _certify(self, path: Array, stage: Stage, seed: Array | None,
                  certificate: PathCertificate | None, info: dict[str, object] | None,
-                 length: float) -> bool:
+                 length: float, query: PlanQuery | None = None) -> bool:
+        """Certify ``path`` for ``query`` (by default the run's; another deadline) and make
+        it the answer when it passes."""
         t = time.perf_counter()
-        why, certificate = check_path(self.world, self.query, path, certificate)
+        why, certificate = check_path(self.world, query or self.query, path, certificate)
         self.timing["offers"] = self.timing.get("offers", 0.0) + time.perf_counter() - t
         if why is not None:
             self.rejected.append((stage, why[0], why[1]))
@@ -125,10 +133,15 @@ class AnytimeRun:
         """The best solution as a success, else a failure with status ``failure`` — or, when
         ``failure`` says SOLVED because a stage found paths that all failed their
         certification, the first failed check's status (the waiting candidates are certified
-        first, shortest first, until one passes)."""
+        first, shortest first, until one passes; none once the time limit has passed)."""
         waiting, self._candidates = sorted(self._candidates, key=lambda c: c.length), []
+        # certified by FINAL_CHECK_RESERVE_S before the deadline, so the final check fits
+        query = replace(self.query,
+                        time_limit_s=self.query.time_limit_s - FINAL_CHECK_RESERVE_S)
+        if query.expired():   # a certification would fail ("timeout"): none is tried
+            waiting = []
         for c in waiting:
-            if self._certify(c.path, c.stage, c.seed, None, c.info, c.length):
+            if self._certify(c.path, c.stage, c.seed, None, c.info, c.length, query):
                 break
         info = {**(info or {}), **self.best_info}
         if self.rejected:

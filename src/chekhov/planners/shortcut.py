@@ -67,7 +67,7 @@ def partial_shortcut(fast: FastChecker, path: Array, rng: np.random.Generator, *
         A = P[i[:, 0]] + t[:, :1] * (P[i[:, 0] + 1] - P[i[:, 0]])
         B = P[i[:, 1]] + t[:, 1:] * (P[i[:, 1] + 1] - P[i[:, 1]])
         saved = (S[:, 1] - S[:, 0]) - np.linalg.norm(B - A, axis=1)
-        k = _most_saving_free(fast, A, B, saved, resolution)
+        k = _most_saving_free(fast, A, B, saved, resolution, deadline)
         if k < 0:
             continue
         P = np.vstack([P[: i[k, 0] + 1], A[k], B[k], P[i[k, 1] + 1:]])
@@ -77,15 +77,18 @@ def partial_shortcut(fast: FastChecker, path: Array, rng: np.random.Generator, *
 
 
 def _most_saving_free(fast: FastChecker, A: Array, B: Array, saved: Array,
-                      resolution: float) -> int:
+                      resolution: float, deadline: float = math.inf) -> int:
     """Index of the free motion A[i] → B[i] (n, K) that saves the most (``saved`` (n,) rad,
-    more than 1e-6; the first such index on ties), or -1. The motions are checked one at a
-    time in that order, so those after the answer are never checked. Measured on 80 Panda
+    more than 1e-6; the first such index on ties), or -1 — also when ``deadline``
+    (``time.perf_counter()`` value, s) passes before one is found. The motions are checked
+    one at a time in that order, so those after the answer are never checked. Measured on 80 Panda
     paths (16 pairs a round, in one run): partial_shortcut took 51-57% less time than when
     it checked all 16 in one batch (in batches of 2: 45-50% less, of 4: 33-39%, of 8: 20%),
     with the same paths."""
     order = np.argsort(-saved, kind="stable")
     for i in order[saved[order] > 1e-6]:
+        if time.perf_counter() >= deadline:
+            return -1
         if fast.motions_valid(A[i:i + 1], B[i:i + 1], resolution)[0]:
             return int(i)
     return -1
