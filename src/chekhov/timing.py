@@ -222,9 +222,8 @@ def polyline_offsets(Q: Array, P: Array) -> tuple[NDArray[np.int64], Array]:
     Q, P = np.atleast_2d(Q), np.atleast_2d(P)
     if len(P) == 1:
         return np.zeros(len(Q), dtype=np.int64), np.linalg.norm(Q - P[0], axis=1)
-    seg, dist = nearest_segments(np.ascontiguousarray(Q, dtype=float),
-                                 np.ascontiguousarray(P, dtype=float))
-    return seg, dist
+    return nearest_segments(np.ascontiguousarray(Q, dtype=float),
+                            np.ascontiguousarray(P, dtype=float))
 
 
 def _distinct(P: Array) -> Array:

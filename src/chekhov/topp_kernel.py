@@ -16,8 +16,9 @@ eliminating u (Fourier–Motzkin: every upper bound on u must be ≥ every lower
 linear bounds on x alone, so K_i is exact — where toppra solves two LPs per stage. Forward
 pass: from x_0 = 0, the largest u_i that keeps x_{i+1} in K_{i+1} (toppra's greedy pass).
 
-Same answers as toppra's to its solver's tolerance (``tests/test_timing.py`` compares them);
-about 50 times faster, so timing a plan no longer costs more than planning it.
+Same answers as toppra's to its solver's tolerance (``tests/test_trajectory.py`` compares
+them); about 20 times faster than the package's solver on 190 random polylines (grid and
+path derivatives included).
 """
 
 from __future__ import annotations
