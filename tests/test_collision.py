@@ -248,6 +248,31 @@ def test_certified_motion_checks_equal_the_bisection_checks(world_of):
         assert 0 < got.mean() < 1
 
 
+def test_budgeted_motion_checks_resumed_decide_the_same(world_of):
+    """The motion kernel cut into calls of a few configurations each (as near a deadline),
+    each resumed at the motion and step where the last stopped, decides every motion as one
+    unbudgeted call does; FastChecker.motions_valid with a deadline already passed decides
+    the motions its one call reaches and calls the rest blocked."""
+    from chekhov.collision import dense_path
+
+    w = world_of("panda_cage")
+    Q = w.robot.sample_uniform(np.random.default_rng(12), 2000)
+    Q = Q[w.fast.valid(Q)]
+    A, B = Q[:120], Q[120:240]
+    ref = w.fast.motions_valid(A, B, 0.02)
+    assert 0 < ref.mean() < 1
+    out, done, resume, calls = np.zeros(len(A), dtype=bool), 0, 0, 0
+    while done < len(A):
+        part, done, resume = dense_path.motions_valid_dense(A, B, 0.02, done, resume, 5,
+                                                            w.fast.packed)
+        out |= part
+        calls += 1
+    np.testing.assert_array_equal(out, ref)
+    assert calls > len(A)   # motions were cut and resumed
+    late = w.fast.motions_valid(A, B, 0.02, deadline=0.0)
+    assert not (late & ~ref).any() and late.sum() < ref.sum()
+
+
 def test_group_order_and_coarse_grids_do_not_change_decisions(world_of, rng):
     """The fast checker visits the most often blocked groups first and screens groups on
     coarse grids (one lookup in the static and fixed-part grids combined first); with the
@@ -337,7 +362,8 @@ def test_dense_path_check_near_contact_equals_every_configuration(world_of, scen
     """Paths that graze the scene, millimetres from contact all along (where a group's
     spheres touch and its certificate comes from GJK on the covered geometry), with and
     without the certification's margins: the dense walk's first colliding index is the one
-    checking every configuration of densify(path, 100) gives."""
+    checking every configuration of densify(path, 100) gives — also when the walk is cut
+    into calls of a few configurations, each resumed where the last stopped."""
     from chekhov.collision import dense_path, validity
     from chekhov.collision.exact import densify
 
@@ -347,7 +373,7 @@ def test_dense_path_check_near_contact_equals_every_configuration(world_of, scen
     G = len(fast.packed.groups.radius)
     margins = [(np.zeros(0), np.zeros(0)), (np.full(G, 0.002), np.full(G, 0.001))]
     seen: dict[bool, int] = {True: 0, False: 0}
-    paths = 0
+    paths = resumed = 0
     while paths < 30:
         q0 = w.robot.sample_uniform(rng, 1)[0]
         v = rng.normal(size=w.robot.dof)
@@ -370,10 +396,19 @@ def test_dense_path_check_near_contact_equals_every_configuration(world_of, scen
                 fast.packed, pad, grow)
             v_all = ~validity.valid_batch(densify(P, 100), packed)
             ref = int(np.flatnonzero(v_all)[0]) if v_all.any() else -1
-            got = dense_path.first_dense_collision(P, 100, 0, pad, grow, fast.packed)
-            assert got == ref, (paths, len(pad))
+            got, resume = dense_path.first_dense_collision(P, 100, 0, dense_path.NO_BUDGET,
+                                                           pad, grow, fast.packed)
+            assert got == ref and resume == -1, (paths, len(pad))
+            resume, calls = 0, 0
+            while resume >= 0:
+                got, resume = dense_path.first_dense_collision(P, 100, resume, 3, pad, grow,
+                                                               fast.packed)
+                calls += 1
+            assert got == ref, (paths, len(pad), calls)
+            resumed += calls > 1
             seen[ref < 0] += 1
     assert seen[True] >= 5 and seen[False] >= 5, seen
+    assert resumed >= 10, resumed
 
 
 def test_repacked_obstacles_equal_packing_them_afresh(world_of):

@@ -191,3 +191,25 @@ def test_a_candidate_that_fails_its_certification_leaves_the_longer_one_before_i
         assert "simplify: collision" in str(res.info["rejected_offers"])
         return
     pytest.fail("no case with a colliding straight line")
+
+
+def test_no_offer_is_certified_in_the_final_checks_reserve(world, roadmap):
+    """An offer whose certification would end within FINAL_CHECK_RESERVE_S of the time limit
+    is refused as a timeout (the final check must fit before the limit); the same offer with
+    time to spare becomes the answer."""
+    import time
+
+    from chekhov.planners.anytime import FINAL_CHECK_RESERVE_S, AnytimeRun
+    from chekhov.planners.query import PlanQuery
+
+    cases = generate_cases(world, 10, seed=5)
+    q0, qg = cases.q_start[0], cases.q_goal[0]
+    r = RoadmapTrajOpt(world, roadmap).plan(q0, Goal.configuration(qg), 2.0)
+    assert r.success
+    late = AnytimeRun(world, PlanQuery(q0, Goal.configuration(qg), 0.8 * FINAL_CHECK_RESERVE_S,
+                                       time.perf_counter()))
+    assert not late.offer(r.path, Stage.SHORTCUT) and late.best is None
+    assert late.result(PlanStatus.SOLVED).status is PlanStatus.TIMEOUT
+    on_time = AnytimeRun(world, PlanQuery(q0, Goal.configuration(qg), 10.0,
+                                          time.perf_counter()))
+    assert on_time.offer(r.path, Stage.SHORTCUT) and on_time.best is not None

@@ -253,5 +253,32 @@ def test_a_certificate_covers_only_its_path_and_world(world, cases):
         world.remove_obstacle("far")
 
 
+def test_a_certified_path_is_known_by_the_path_it_resampled(world, cases):
+    """check_path's certificate names the path it resampled: the same path passes again on
+    the certificate alone (the final check of an anytime answer), another path or world
+    does not, and a certificate that does not cover a path gets no say."""
+    from chekhov.planners.certify import check_path
+    from chekhov.planners.query import make_query
+
+    q0, q1 = _free_pair(world, cases)
+    P = np.vstack([q0, 0.5 * (q0 + q1), q1])
+    query = make_query(world.robot, q0, Goal.configuration(q1), 10.0)
+    why, cert = check_path(world, query, P)
+    assert why is None and cert is not None and cert.covers_resampled(P, 100, world.fast)
+    assert not cert.covers_resampled(P[[0, 2]], 100, world.fast)
+    why_again, same = check_path(world, query, P, cert)
+    assert why_again is None and same is cert
+    T_far = np.eye(4)
+    T_far[:3, 3] = [5.0, 0.0, 0.0]
+    world.add_obstacle("far", Shape("sphere", (0.01,)), T_far)
+    try:
+        assert not cert.covers_resampled(P, 100, world.fast)
+    finally:
+        world.remove_obstacle("far")
+    # the start is still checked with a certificate
+    moved = make_query(world.robot, q1, Goal.configuration(q1), 10.0)
+    assert check_path(world, moved, P, cert)[0] is not None
+
+
 def test_errors_are_chekhov_errors():
     assert issubclass(PlanningInputError, ChekhovError)

@@ -387,7 +387,8 @@ def test_a_connection_is_kept_until_the_obstacles_change(world, seeder, monkeypa
     conn = seeder.connector
     checks: list[int] = []
     real = conn._motions
-    monkeypatch.setattr(conn, "_motions", lambda Q0, Q1: checks.append(len(Q0)) or real(Q0, Q1))
+    monkeypatch.setattr(conn, "_motions",
+                        lambda Q0, Q1, *a: checks.append(len(Q0)) or real(Q0, Q1, *a))
 
     def summary(found):
         return [(c.node, c.cost, c.kind, c.via.tobytes()) for c in found]

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from itertools import pairwise
-
 import numpy as np
 from numpy.typing import NDArray
 
@@ -19,14 +17,13 @@ def path_length(path: Array) -> float:
 def resample_path(path: Array, max_step: float = 0.16) -> Array:
     """The path (T, K) with each segment split evenly so that adjacent waypoints are at most
     ``max_step`` rad apart (joint-space L2, the paper's 0.16 rad pre-processing). Waypoints of
-    the input are kept; repeated waypoints are dropped."""
+    the input are kept; repeated waypoints are dropped. One vectorised pass (the certification
+    of every answer runs it: a loop per point took 0.13 ms for a 40-waypoint path)."""
     P = np.atleast_2d(np.asarray(path, dtype=float))
-    out = [P[0]]
-    for a, b in pairwise(P):
-        d = float(np.linalg.norm(b - a))
-        if d < 1e-12:
-            continue
-        n = int(np.ceil(d / max_step - 1e-9))
-        for i in range(1, n + 1):
-            out.append(a + (b - a) * (i / n))
-    return np.array(out)
+    step = P[1:] - P[:-1]                                   # (T - 1, K)
+    d = np.sqrt(np.einsum("ij,ij->i", step, step))
+    n = np.where(d < 1e-12, 0, np.ceil(d / max_step - 1e-9)).astype(np.int64)
+    seg = np.repeat(np.arange(len(step)), n)                # each new point's segment
+    i = np.arange(1, len(seg) + 1) - np.repeat(np.cumsum(n) - n, n)   # 1..n per segment
+    frac = i / n[seg]
+    return np.vstack([P[:1], P[seg] + step[seg] * frac[:, None]])

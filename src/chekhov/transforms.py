@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -91,5 +92,5 @@ def rotation_about(axis: Sequence[float], angle: float) -> Array:
 
 def rotation_angle(R_a: Array, R_b: Array) -> float:
     """Geodesic angle (rad) between two rotations of shape (3, 3)."""
-    c = (np.trace(R_a.T @ R_b) - 1.0) / 2.0
-    return float(np.arccos(np.clip(c, -1.0, 1.0)))
+    c = (float(np.einsum("ij,ij->", R_a, R_b)) - 1.0) / 2.0   # trace(R_a^T R_b)
+    return math.acos(min(1.0, max(-1.0, c)))

@@ -57,6 +57,9 @@ from chekhov.collision.self_table import table_gap
 from chekhov.collision.validity import collisions, make_work
 from chekhov.robot.chain_kinematics import chain_fk_arrays
 
+NO_BUDGET = 2 ** 62
+"""``visits`` for a walk without a budget."""
+
 
 class WalkWork(NamedTuple):
     """Work arrays of :func:`_walk`: until (G,) / puntil (P,) int64, the last substep each
@@ -66,7 +69,9 @@ class WalkWork(NamedTuple):
     each other* (only the joints between them count); q (K,); Rc (K, 3, 3), pc (K, 3),
     gwc (G, 3): joint poses and group centres; swc (S, 3) sphere centres, valid for the
     substep in swc_at (G,) int64 (per group); mark (K,) bool, Rw (2, 3, 3), pw (2, 3),
-    cw (2, 3) work space."""
+    cw (2, 3) work space; budget (2,) int64: the configurations :func:`_walk` may still look
+    at (those not covered by certificates) and, when it ran out, the next one it would have
+    looked at (-1: it did not run out)."""
 
     until: np.ndarray
     puntil: np.ndarray
@@ -84,6 +89,7 @@ class WalkWork(NamedTuple):
     Rw: np.ndarray
     pw: np.ndarray
     cw: np.ndarray
+    budget: np.ndarray
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -216,7 +222,9 @@ def _walk(P0, P1, n, m_first, m_last, check_ends, world, work, ww
     """Configurations P0 + (m / n)(P1 - P0) for m = m_first … m_last, in order: the first m
     the fast checker calls colliding, or ``NONE``. Clearance certificates skip the rest (see
     the module docstring); with ``check_ends`` False, m = 0 and m = n only give certificates.
-    ``work``: a ``validity.Work``; ``ww``: a :class:`WalkWork`."""
+    ``work``: a ``validity.Work``; ``ww``: a :class:`WalkWork`. Each configuration looked at
+    takes one from ``ww.budget[0]``; when none is left before m_last, ``NONE`` with the next
+    m in ``ww.budget[1]`` (the walk is to resume there)."""
     K = P0.shape[0]
     # every array, out of the named tuples once (see ``validity.py``'s docstring)
     chain, groups, grids, dyn = world.chain, world.groups, world.grids, world.dynamic
@@ -229,7 +237,7 @@ def _walk(P0, P1, n, m_first, m_last, check_ends, world, work, ww
                                      grids.fine, grids.fixed)
     dk, dR, dp, ds = dyn.kind, dyn.R, dyn.p, dyn.size
     (until, puntil, step_len, sphere_step, pair_step, pair_sphere_step, q, Rc, pc, gwc, swc,
-     swc_at, mark, Rw, pw, cw) = ww
+     swc_at, mark, Rw, pw, cw, budget) = ww
     geo = world.geometry
     tpair, tjoint, tlo, tinv, tgap = world.self_tables
     st, fixed = world.static, world.fixed
@@ -335,12 +343,14 @@ def _walk(P0, P1, n, m_first, m_last, check_ends, world, work, ww
                 puntil[k] = m + int(d / pair_sphere_step[k])
             else:
                 need_full = True
-        if not need_full:
-            continue
-        if not check_ends and (m == 0 or m == n):
-            continue
-        if collisions(q_row, world, work, hit, True) != NONE:
+        if need_full and (check_ends or 0 < m < n) \
+                and collisions(q_row, world, work, hit, True) != NONE:
             return m
+        if not chain_needed:   # m was looked at
+            budget[0] -= 1
+            if budget[0] <= 0 and m < m_last:
+                budget[1] = m + 1
+                return NONE
     return NONE
 
 
@@ -354,7 +364,8 @@ def make_walk_work(K, world):  # pragma: no cover - compiled
                     np.empty(G), np.empty(P), np.empty(P), np.empty(K), np.empty((K, 3, 3)),
                     np.empty((K, 3)), np.empty((G, 3)), np.empty((S, 3)),
                     np.empty(G, dtype=np.int64), np.empty(K, dtype=np.bool_),
-                    np.empty((2, 3, 3)), np.empty((2, 3)), np.empty((2, 3)))
+                    np.empty((2, 3, 3)), np.empty((2, 3)), np.empty((2, 3)),
+                    np.array([NO_BUDGET, -1]))
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -379,44 +390,61 @@ def with_margin(world, pad, grow):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True)
-def first_dense_collision(P, substeps, start, pad, grow, world
+def first_dense_collision(P, substeps, start, visits, pad, grow, world
                           ):  # pragma: no cover - compiled
-    """Index (>= ``start``) of the first configuration of the densified path that the fast
-    checker calls colliding, or ``NONE``. The densified path has ``substeps`` configurations
-    between each pair of waypoints of P (T, K), waypoints included (the order of
-    :func:`exact.densify`); configurations before index ``start`` are not looked at. With
-    ``pad`` and ``grow`` (G,) m, in ``with_margin(world, pad, grow)``; empty: in ``world``."""
+    """(i, resume): i the index (>= ``start``) of the first configuration of the densified
+    path that the fast checker calls colliding, or ``NONE``. The densified path has
+    ``substeps`` configurations between each pair of waypoints of P (T, K), waypoints
+    included (the order of :func:`exact.densify`); configurations before index ``start`` are
+    not looked at. At most ``visits`` configurations are looked at (those certificates do not
+    cover; the cost of a call near contact, where the clock cannot be looked at): when they
+    run out first, i is ``NONE`` and ``resume`` the index to call again from (-1: the whole
+    path was decided). With ``pad`` and ``grow`` (G,) m, in ``with_margin(world, pad,
+    grow)``; empty: in ``world``."""
     if pad.shape[0] > 0:
         world = with_margin(world, pad, grow)
     T, K = P.shape
     work = make_work(K, world)
     ww = make_walk_work(K, world)
+    ww.budget[0] = visits
     n = substeps + 1
     t_first = start // n
     for t in range(t_first, T - 1):
         m_first = start - t * n if t == t_first else 0
         m = _walk(P[t], P[t + 1], n, m_first, n - 1, True, world, work, ww)
         if m >= 0:
-            return t * n + m
+            return t * n + m, -1
+        if ww.budget[1] >= 0:
+            return NONE, t * n + ww.budget[1]
+        if ww.budget[0] <= 0 and t + 1 < T - 1:   # ran out at a segment's end
+            return NONE, (t + 1) * n
     if start > (T - 1) * n:
-        return NONE
+        return NONE, -1
     m = _walk(P[T - 1], P[T - 1], 0, 0, 0, True, world, work, ww)
-    return (T - 1) * n if m >= 0 else NONE
+    return ((T - 1) * n if m >= 0 else NONE), -1
 
 
 @njit(cache=True, nogil=True)
-def motions_valid_dense(Q0, Q1, resolution, world):  # pragma: no cover - compiled
-    """Whether each straight motion Q0[i] → Q1[i] is free at the interior steps k / n,
-    n = ceil(length / resolution): the same configurations and answer as
-    :func:`validity.motions_valid`, visited in order with clearance certificates instead of in
-    bisection order. End points give certificates but are not checked."""
+def motions_valid_dense(Q0, Q1, resolution, first, first_m, visits, world
+                        ):  # pragma: no cover - compiled
+    """(out, done, resume): whether each straight motion Q0[i] → Q1[i] is free at the
+    interior steps k / n, n = ceil(length / resolution): the same configurations and answer
+    as :func:`validity.motions_valid`, visited in order with clearance certificates instead of
+    in bisection order. End points give certificates but are not checked. From motion
+    ``first``'s step ``first_m`` on (0: the motion's start), looking at ``visits``
+    configurations at most (as :func:`first_dense_collision`): out[first:done] are decided;
+    when done < N, motion ``done`` is to be resumed at step ``resume``."""
     K = Q0.shape[1]
     work = make_work(K, world)
     ww = make_walk_work(K, world)
+    ww.budget[0] = visits
     probes = np.empty((3, K))
     hits = np.empty(3, dtype=np.bool_)
-    out = np.empty(Q0.shape[0], dtype=np.bool_)
-    for i in range(Q0.shape[0]):
+    out = np.zeros(Q0.shape[0], dtype=np.bool_)
+    for i in range(first, Q0.shape[0]):
+        m_first = first_m if i == first else 0
+        if ww.budget[0] <= 0:
+            return out, i, m_first
         d = 0.0
         for a in range(K):
             d += (Q1[i, a] - Q0[i, a]) ** 2
@@ -424,14 +452,37 @@ def motions_valid_dense(Q0, Q1, resolution, world):  # pragma: no cover - compil
         if n <= 1:
             out[i] = True
             continue
-        m = 0  # the first levels of the bisection order catch most collisions early
-        for k in (n // 2, n // 4, (3 * n) // 4):
-            if 0 < k < n:
-                for a in range(K):
-                    probes[m, a] = Q0[i, a] + (k / n) * (Q1[i, a] - Q0[i, a])
-                m += 1
-        if collisions(probes[:m], world, work, hits, True) != NONE:
-            out[i] = False
-            continue
-        out[i] = _walk(Q0[i], Q1[i], n, 0, n - 1, False, world, work, ww) < 0
-    return out
+        if m_first == 0:
+            m = 0  # the first levels of the bisection order catch most collisions early
+            for k in (n // 2, n // 4, (3 * n) // 4):
+                if 0 < k < n:
+                    for a in range(K):
+                        probes[m, a] = Q0[i, a] + (k / n) * (Q1[i, a] - Q0[i, a])
+                    m += 1
+            if collisions(probes[:m], world, work, hits, True) != NONE:
+                continue
+        free = _walk(Q0[i], Q1[i], n, m_first, n - 1, False, world, work, ww) < 0
+        if ww.budget[1] >= 0:   # ran out within the motion
+            return out, i, ww.budget[1]
+        out[i] = free
+    return out, Q0.shape[0], 0
+
+
+VISIT_COST_S = 5e-5
+"""s: what the fast walk may take per configuration it looks at (one not covered by
+certificates), for its budget (:func:`visit_budget`): measured 25-65 µs on the Panda near
+contact with the certification's margins, where two segments of a path took up to 13 ms in one
+call (a compiled call cannot look at the clock)."""
+MIN_VISITS = 8
+"""Configurations a walk's call may look at however near the deadline (each call sets up its
+work arrays again and loses its certificates)."""
+
+
+def visit_budget(left_s: float) -> int:
+    """Configurations one call of the walk may look at with ``left_s`` (s) before its
+    deadline: those that take half of it at :data:`VISIT_COST_S` each, at least
+    :data:`MIN_VISITS`, so that the calls shrink as the deadline nears and the last overruns it
+    by little (``NO_BUDGET`` when the deadline is far)."""
+    if left_s >= NO_BUDGET * VISIT_COST_S:
+        return NO_BUDGET
+    return max(MIN_VISITS, int(0.5 * left_s / VISIT_COST_S))

@@ -187,14 +187,17 @@ class ExactChecker:
 
         coal's collision test with the margin as its security margin (a yes/no with early
         exit, ~30 times cheaper than a distance on the Panda's meshes); the margins are kept in
-        the requests of a GeometryData of their own, and only changed ones are set. A pair with
-        a large mesh whose hull bound (``hull_bounds.py``) clears its margin is not asked."""
+        the requests of a GeometryData of their own, and only the asked pairs' changed ones
+        are set (each a pybind call: all 1493 of the kitchen's took 1.8 ms). A pair with a
+        large mesh whose hull bound (``hull_bounds.py``) clears its margin is not asked."""
         gd, gm = self._margin_geometry(), self.geom_model
-        if not np.array_equal(self._margins, margins):
+        asked = np.arange(len(margins)) if pairs is None else np.asarray(pairs, np.int64)
+        changed = asked[self._margins[asked] != margins[asked]]
+        if len(changed):
             reqs = gd.collisionRequests
-            for k in np.flatnonzero(self._margins != margins).tolist():
+            for k in changed.tolist():
                 reqs[k].security_margin = float(margins[k])
-            self._margins = np.array(margins, dtype=float)
+            self._margins[changed] = margins[changed]
         if self._hulls:
             todo = np.arange(len(margins)) if pairs is None else np.asarray(pairs, np.int64)
             self._place(q)

@@ -7,6 +7,8 @@ never calls a configuration free that the exact checker calls colliding.
 
 from __future__ import annotations
 
+import math
+import time
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -220,11 +222,26 @@ class FastChecker:
         """Whether one configuration (K,) is collision-free."""
         return bool(self.valid(q)[0])
 
-    def motions_valid(self, Q0: Array, Q1: Array, resolution: float = 0.02) -> BoolArray:
+    def motions_valid(self, Q0: Array, Q1: Array, resolution: float = 0.02,
+                      deadline: float = math.inf) -> BoolArray:
         """Whether each straight motion Q0[i] → Q1[i] is free at every ``resolution`` (rad)
-        step of joint-space distance; end points are not checked."""
+        step of joint-space distance; end points are not checked. With a ``deadline`` (a
+        ``time.perf_counter()`` value, s) the compiled calls are budgeted
+        (``dense_path.visit_budget``) and the clock is looked at between them: a motion not
+        decided by then counts as blocked."""
         Q0, Q1 = self._as_batch(Q0), self._as_batch(Q1)
-        return self.run_kernel(dense_path.motions_valid_dense, Q0, Q1, float(resolution))
+        out = np.zeros(len(Q0), dtype=bool)
+        done = resume = calls = 0
+        while done < len(Q0):
+            left = deadline - time.perf_counter()
+            if calls > 0 and left <= 0.0:
+                break
+            part, done, resume = self.run_kernel(
+                dense_path.motions_valid_dense, Q0, Q1, float(resolution), done, resume,
+                dense_path.visit_budget(max(left, 0.0)))
+            out |= part
+            calls += 1
+        return out
 
     def motion_valid(self, q0: Array, q1: Array, resolution: float = 0.02) -> bool:
         """Whether the straight motion q0 → q1 and both end points are collision-free."""
@@ -243,8 +260,8 @@ class FastChecker:
         ``valid(densify(path, substeps)[start:])``, computed with clearance certificates that
         skip most configurations (see ``dense_path.py``)."""
         P = self._as_batch(path)
-        i = self.run_kernel(dense_path.first_dense_collision, P, int(substeps), int(start),
-                            _NO_MARGIN, _NO_MARGIN)
+        i, _ = self.run_kernel(dense_path.first_dense_collision, P, int(substeps), int(start),
+                               dense_path.NO_BUDGET, _NO_MARGIN, _NO_MARGIN)
         return None if i == NONE else int(i)
 
     def dense_path_valid(self, path: Array, substeps: int = 100) -> bool:

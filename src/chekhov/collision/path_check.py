@@ -39,8 +39,10 @@ half-steps on either side of it:
   whose bounding spheres are far apart need no coal (:meth:`ExactChecker.pair_bounds`).
 
 With no motion bound (a joint that is not revolute) the coal checks are the boolean ones on
-the samples alone. The fast checker walks :data:`WIDE_CHUNK_SEGMENTS` segments at a time
-(:data:`CHUNK_SEGMENTS` near the deadline) with clearance certificates (``dense_path.py``).
+the samples alone. The fast checker walks :data:`CHUNK_SEGMENTS` segments at a time with
+clearance certificates (``dense_path.py``); near the deadline a compiled call looks at as
+many configurations as half the time left allows (``dense_path.visit_budget``), and the clock
+is looked at between calls.
 A passed check returns a :class:`PathCertificate` bound to the path's bytes, the substeps
 and the checkers' obstacle version, so that a later certification of the very same path in
 the very same world (``chekhov.planners.certify``) need not run it again.
@@ -66,18 +68,11 @@ from chekhov.paths import resample_path
 
 Array = NDArray[np.float64]
 
-CHUNK_SEGMENTS = 2
-"""Segments screened per fast-checker call when the deadline is near (within
-:data:`NEAR_DEADLINE_S`): the deadline is looked at between calls."""
-WIDE_CHUNK_SEGMENTS = 8
-"""Segments screened per fast-checker call otherwise: fewer calls (each sets up its work
-arrays and margins), measured in one process against 2: the first answer's median 9.3 → 7.6
-ms (kitchen tasks), 5.5 → 4.7 (panda_cage), 3.5 → 3.2 (tabletop_pole); the exact check of a
-timed answer's arcs 21.6 → 16.0, 12.4 → 9.1, 13.7 → 8.5 ms."""
-NEAR_DEADLINE_S = 0.05
-"""s: within this of the deadline the decision screens :data:`CHUNK_SEGMENTS` at a time (a
-compiled call cannot look at the clock: on the Panda near contact two segments took up to
-13 ms)."""
+CHUNK_SEGMENTS = 8
+"""Segments screened per fast-checker call (each sets up its work arrays and margins),
+measured in one process against 2: the first answer's median 9.3 → 7.6 ms (kitchen tasks),
+5.5 → 4.7 (panda_cage), 3.5 → 3.2 (tabletop_pole); the exact check of a timed answer's arcs
+21.6 → 16.0, 12.4 → 9.1, 13.7 → 8.5 ms."""
 EXACT_WINDOW = 4
 """Configurations coal checks from an alarm before the fast walk resumes (and the deadline is
 looked at again)."""
@@ -90,6 +85,9 @@ the pair's margin plus its motion bound over that many samples."""
 BOUND_PAIRS = 16
 """With more pairs than this to look at in a sample, bounding spheres clear the far ones
 first (:meth:`ExactChecker.pair_bounds`, ~50 µs); fewer go to coal directly."""
+PAIRS_PER_CALL = 400
+"""Collision pairs coal's screening test takes at a time, the deadline looked at between
+(1493 of the kitchen's took 3.1 ms in one call)."""
 REFINE_POINTS = 48
 """Coal distance evaluations at most per half-step refined by :func:`_motion_free`; a motion
 that needs more (closer than about L_p / 48, a few µm on the Panda) is not certified."""
@@ -106,17 +104,27 @@ class PathCertificate:
         digest: SHA-1 of the path's float64 bytes and shape.
         substeps: interpolated configurations per segment that were checked.
         obstacles_version: the fast checker's ``obstacles_version`` at the check.
+        resampled_from: SHA-1 of the path whose resampling (``resample_path``) was checked,
+            when the caller that resampled it says so (``chekhov.planners.certify``).
     """
 
     digest: bytes
     substeps: int
     obstacles_version: int
+    resampled_from: bytes | None = None
 
     def covers(self, path: Array, substeps: int, fast: FastChecker) -> bool:
         """Whether this certificate is for ``path`` at exactly ``substeps`` (a denser check
         does not contain a sparser one's configurations) in ``fast``'s world as it is now."""
         return (self.substeps == substeps and self.obstacles_version == fast.obstacles_version
                 and self.digest == path_digest(path))
+
+    def covers_resampled(self, path: Array, substeps: int, fast: FastChecker) -> bool:
+        """:meth:`covers` for the resampling of ``path`` that ``resampled_from`` names,
+        without resampling it again."""
+        return (self.resampled_from is not None and self.substeps == substeps
+                and self.obstacles_version == fast.obstacles_version
+                and self.resampled_from == path_digest(path))
 
 
 class PathDecision(NamedTuple):
@@ -158,8 +166,9 @@ def exact_path_decision(fast: FastChecker, exact: ExactChecker, path: Array,
     checker's decision (module docstring), or None when ``deadline`` (a
     ``time.perf_counter()`` value, s) passed before the decision.
 
-    The fast checker walks :data:`WIDE_CHUNK_SEGMENTS` segments at a time (near the deadline
-    :data:`CHUNK_SEGMENTS`) with clearance certificates; from each configuration it flags,
+    The fast checker walks :data:`CHUNK_SEGMENTS` segments at a time with clearance
+    certificates (near the deadline in calls of ``dense_path.visit_budget`` configurations); from
+    each configuration it flags,
     coal checks the next :data:`EXACT_WINDOW` configurations of that segment, and the fast
     walk resumes after them (or after those coal's own certificates cover).
     """
@@ -187,9 +196,7 @@ def _decide(fast: FastChecker, coal_: _Coal, P: Array) -> bool:
     a = 0
     while a < max(last, 1):
         coal_.check_time()
-        near = coal_.deadline - time.perf_counter() < NEAR_DEADLINE_S
-        step = CHUNK_SEGMENTS if near else WIDE_CHUNK_SEGMENTS
-        chunk = P[a:min(a + step, last) + 1]
+        chunk = P[a:min(a + CHUNK_SEGMENTS, last) + 1]
         size = (len(chunk) - 1) * n + 1   # the chunk's samples
         i = coal_.first_alarm(fast, chunk, 0)
         while i is not None:
@@ -203,7 +210,7 @@ def _decide(fast: FastChecker, coal_: _Coal, P: Array) -> bool:
                 return False
             end = max(end, coal_.certified_through() + 1 - a * n)
             i = coal_.first_alarm(fast, chunk, end) if end < size else None
-        a += step
+        a += CHUNK_SEGMENTS
     return True
 
 
@@ -255,10 +262,17 @@ class _Coal:
 
     def first_alarm(self, fast: FastChecker, P: Array, start: int) -> int | None:
         """Index (>= ``start``) into ``densify(P, self.substeps)`` of the first configuration
-        the screen flags, or None (``FastChecker.first_dense_collision`` with the margins)."""
-        i = fast.run_kernel(dense_path.first_dense_collision, P, self.substeps, start,
-                            self.pad, self.grow)
-        return None if i == NONE else int(i)
+        the screen flags, or None (``FastChecker.first_dense_collision`` with the margins):
+        in calls of ``dense_path.visit_budget`` configurations, the clock looked at between
+        them."""
+        while True:
+            visits = dense_path.visit_budget(self.deadline - time.perf_counter())
+            i, resume = fast.run_kernel(dense_path.first_dense_collision, P, self.substeps,
+                                        start, visits, self.pad, self.grow)
+            if resume < 0:
+                return None if i == NONE else int(i)
+            self.check_time()
+            start = int(resume)
 
     def check_time(self) -> None:
         """Raise :class:`_PastDeadlineError` once the deadline has passed."""
@@ -284,6 +298,7 @@ class _Coal:
             return exact.is_valid(D[j])
         q = D[j]
         if len(todo) > BOUND_PAIRS:   # those with bounding spheres far enough apart: no coal
+            self.check_time()
             lb = exact.pair_bounds(q, todo)
             far = lb >= self.look[todo]
             self.until[todo[far]] = j + ((lb[far] - self.mu[todo[far]])
@@ -291,7 +306,7 @@ class _Coal:
             todo = todo[~far]
             if len(todo) == 0:
                 return True
-        close = exact.pairs_within(q, self.look, todo)
+        close = self._pairs_within(q, todo)
         self.until[todo] = j + LOOKAHEAD
         if len(close) == 0:
             return True
@@ -312,6 +327,16 @@ class _Coal:
         return not near.any() or all(
             _motion_free(exact, close[near], Wc[near], q, d[near], end, self.check_time)
             for end in sides)
+
+    def _pairs_within(self, q: Array, todo: NDArray[np.int64]) -> NDArray[np.int64]:
+        """``exact.pairs_within(q, self.look, todo)`` in parts of :data:`PAIRS_PER_CALL`, the
+        deadline looked at before each."""
+        parts = [todo[i:i + PAIRS_PER_CALL] for i in range(0, len(todo), PAIRS_PER_CALL)]
+        close = [np.zeros(0, dtype=np.int64)]
+        for part in parts:
+            self.check_time()
+            close.append(self.exact.pairs_within(q, self.look, part))
+        return np.concatenate(close)
 
 
 def _round_up(x: Array | float) -> Array:

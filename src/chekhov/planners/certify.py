@@ -37,6 +37,7 @@ from chekhov.collision.path_check import (
     CERTIFY_SUBSTEPS,
     PathCertificate,
     exact_path_decision,
+    path_digest,
 )
 from chekhov.paths import resample_path
 from chekhov.planners.result import PlanResult
@@ -108,16 +109,18 @@ def check_path(world: World, query: PlanQuery, path: Array | None,
     unmet = goal_error(world, query, P[-1])
     if unmet:
         return (PlanStatus.GOAL_UNMET, unmet), None
+    if certificate is not None and certificate.covers_resampled(P, SUBSTEPS, world.fast):
+        return None, certificate   # this check passed P before (an anytime planner's offer)
     D = resample_path(P, MAX_SEGMENT_RAD) if len(P) > 1 else P   # the same waypoints, and more
     if certificate is not None and certificate.covers(D, SUBSTEPS, world.fast):
-        return None, certificate
+        return None, replace(certificate, resampled_from=path_digest(P))
     valid, proof = exact_path_decision(world.fast, world.exact, D, SUBSTEPS, query.deadline)
     if valid is None:
         return (PlanStatus.TIMEOUT, "the time limit passed during the collision check"), None
-    if not valid:
+    if not valid or proof is None:
         return (PlanStatus.COLLISION,
                 f"in collision at {SUBSTEPS} substeps per segment (exact checker)"), None
-    return None, proof
+    return None, replace(proof, resampled_from=path_digest(P))
 
 
 def goal_error(world: World, query: PlanQuery, q: Array) -> str:

@@ -128,7 +128,7 @@ class RoadmapTrajOpt(PlannerBase):
        when time runs out.
     2. **Improvements**, ending ``improve_time_s`` after the first answer and never later
        than :data:`FINISH_RESERVE_S` plus the first answer's certification time before the
-       time limit (what follows them — certifying the waiting candidate, the final check —
+       offers' deadline (what follows them — certifying the waiting candidate, the final check —
        must fit), each offered and kept when certified and shorter: routes to more goal IK
        solutions (``goal_routes``), shortcuts between any two points (``simplify_rounds``),
        TrajOpt from a straight line to the IK solution nearest the start
@@ -225,12 +225,15 @@ class RoadmapTrajOpt(PlannerBase):
         query, cfg = run.query, self.config
         # room for certifying a waiting candidate (as long as the first answer's took) and
         # for the final check
-        stop = query.deadline - FINISH_RESERVE_S - run.timing.get("offers", 0.0)
+        stop = run.offer_deadline - FINISH_RESERVE_S - run.timing.get("offers", 0.0)
         if run.best is not None:
             stop = min(stop, time.perf_counter() + cfg.improve_time_s)
-        if seed is not None and seed_from is Stage.ROADMAP_SEED and cfg.goal_routes > 1:
+        # each stage starts only before the stop (a stage looks at it between its steps, but
+        # its first step, e.g. the goal's IK solutions, takes ~0.7 ms)
+        if (seed is not None and seed_from is Stage.ROADMAP_SEED and cfg.goal_routes > 1
+                and time.perf_counter() < stop):
             seed = self._more_routes(run, seed, stop)
-        if seed is not None and cfg.simplify_rounds > 0:
+        if seed is not None and cfg.simplify_rounds > 0 and time.perf_counter() < stop:
             seed = self._simplify(run, seed, stop)
         line_ok = False
         q_line = self._line_goal(run, seed) if time.perf_counter() < stop else None
@@ -414,7 +417,8 @@ def _line_length(path: Array) -> float:
 
 FINISH_RESERVE_S = 1e-3
 """s: the improvements stop this long (plus the first answer's certification time) before
-the time limit: after them come the waiting candidate's certification and the final check.
+the offers' deadline (``AnytimeRun.offer_deadline``, ``FINAL_CHECK_RESERVE_S`` before the
+limit): after them comes the waiting candidate's certification, then the final check.
 With none, 37-42 of 60 kitchen answers at a 10 ms limit came back 0.5-2.3 ms late
 (``benchmarks/deadline.py``)."""
 _REPAIRABLE = (PlanStatus.NO_CONNECTION, PlanStatus.NO_PATH)

@@ -13,12 +13,17 @@ from chekhov.collision.fast import FastChecker
 Array = NDArray[np.float64]
 
 
+JUMP_BATCH = 4
+"""Candidate jumps screened per batched motion check in :func:`shortcut_path`."""
+
+
 def shortcut_path(fast: FastChecker, path: Array, resolution: float = 0.02,
                   coarse: float = 0.1, deadline: float = math.inf) -> Array:
     """The path (T, K) with every waypoint skipped that a straight, collision-free motion can
     jump over: from each kept waypoint, go to the farthest later waypoint it sees. Candidate
-    jumps are screened at a ``coarse`` resolution (one batched motion check), then the farthest
-    survivor is confirmed at ``resolution`` (rad) before it is taken. The result's waypoints
+    jumps are screened at a ``coarse`` resolution (batched motion checks, farthest first, so
+    that nearer ones are not screened once a far one is taken), then the farthest survivor is
+    confirmed at ``resolution`` (rad) before it is taken. The result's waypoints
     are a subsequence of the input's, its segments are free at ``resolution``, and it is never
     longer (the path's own segments are assumed free, as a planner's are). After ``deadline``
     (a ``time.perf_counter()`` value, s) the rest of the path is kept as it is."""
@@ -26,20 +31,30 @@ def shortcut_path(fast: FastChecker, path: Array, resolution: float = 0.02,
     keep = [0]
     i = 0
     while i < len(P) - 1:
-        j = i + 1
-        if i + 2 < len(P) and time.perf_counter() < deadline:
-            later = np.arange(i + 2, len(P))
-            start = np.repeat(P[i:i + 1], len(later), axis=0)
-            ok = fast.motions_valid(start, P[later], coarse)
-            for cand in later[ok][::-1]:
-                if time.perf_counter() >= deadline:
-                    break
-                if fast.motions_valid(P[i:i + 1], P[cand:cand + 1], resolution)[0]:
-                    j = int(cand)
-                    break
+        j = _farthest_jump(fast, P, i, resolution, coarse, deadline)
         keep.append(j)
         i = j
     return P[keep]
+
+
+def _farthest_jump(fast: FastChecker, P: Array, i: int, resolution: float, coarse: float,
+                   deadline: float) -> int:
+    """The farthest waypoint after i of P (T, K) that a straight motion from P[i] reaches
+    free (screened at ``coarse``, confirmed at ``resolution``), i + 1 when none is (or the
+    deadline has passed). The candidates are screened farthest first, :data:`JUMP_BATCH` at
+    a time, the deadline looked at between batches and confirmations."""
+    for hi in range(len(P), i + 2, -JUMP_BATCH):
+        if time.perf_counter() >= deadline:
+            break
+        later = np.arange(max(i + 2, hi - JUMP_BATCH), hi)
+        start = np.repeat(P[i:i + 1], len(later), axis=0)
+        ok = fast.motions_valid(start, P[later], coarse, deadline)
+        for cand in later[ok][::-1]:
+            if time.perf_counter() >= deadline:
+                return i + 1
+            if fast.motions_valid(P[i:i + 1], P[cand:cand + 1], resolution, deadline)[0]:
+                return int(cand)
+    return i + 1
 
 
 def partial_shortcut(fast: FastChecker, path: Array, rng: np.random.Generator, *,
@@ -89,6 +104,6 @@ def _most_saving_free(fast: FastChecker, A: Array, B: Array, saved: Array,
     for i in order[saved[order] > 1e-6]:
         if time.perf_counter() >= deadline:
             return -1
-        if fast.motions_valid(A[i:i + 1], B[i:i + 1], resolution)[0]:
+        if fast.motions_valid(A[i:i + 1], B[i:i + 1], resolution, deadline)[0]:
             return int(i)
     return -1

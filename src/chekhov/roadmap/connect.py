@@ -75,8 +75,12 @@ class Connector:
         self._cache: dict[tuple[bytes, bool], list[Connection]] = {}
         self._cache_version = -1
 
-    def _motions(self, Q0: Array, Q1: Array) -> NDArray[np.bool_]:
-        return self.world.fast.motions_valid(Q0, Q1, self.resolution)
+    def _motions(self, Q0: Array, Q1: Array, deadline: float = math.inf
+                 ) -> NDArray[np.bool_]:
+        """Whether each straight motion Q0[i] → Q1[i] (N, K) is free; those not decided by
+        ``deadline`` (a ``time.perf_counter()`` value, s) count as blocked
+        (``FastChecker.motions_valid``)."""
+        return self.world.fast.motions_valid(Q0, Q1, self.resolution, deadline)
 
     def direct(self, q: Array, n_candidates: int, batches: tuple[int, ...] = _BATCHES,
                deadline: float = math.inf) -> list[tuple[int, float]]:
@@ -94,7 +98,8 @@ class Connector:
             if hi <= lo or (lo > 0 and time.perf_counter() >= deadline):
                 break
             sel = idx[lo:hi]
-            ok = self._motions(np.repeat(q[None], len(sel), axis=0), self.roadmap.nodes[sel])
+            ok = self._motions(np.repeat(q[None], len(sel), axis=0), self.roadmap.nodes[sel],
+                               deadline)
             out += [(int(n), float(c)) for n, c, v in zip(sel, d[lo:hi], ok, strict=True) if v]
             if out:
                 break
@@ -155,7 +160,7 @@ class Connector:
         Q_mid = Q_mid[fast.valid(Q_mid)]
         if len(Q_mid) == 0:
             return []
-        Q_mid = Q_mid[self._motions(np.repeat(q[None], len(Q_mid), axis=0), Q_mid)]
+        Q_mid = Q_mid[self._motions(np.repeat(q[None], len(Q_mid), axis=0), Q_mid, deadline)]
         out: list[Connection] = []
         for q_mid in Q_mid:
             if time.perf_counter() >= deadline:
