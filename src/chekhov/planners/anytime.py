@@ -146,7 +146,7 @@ class AnytimeRun:
         """The best solution as a success, else a failure with status ``failure`` — or, when
         ``failure`` says SOLVED because a stage found paths that all failed their
         certification, the first failed check's status (the waiting candidates are certified
-        first, shortest first, until one passes; none once the time limit has passed)."""
+        first, shortest first, until one passes; none once the offers' deadline has passed)."""
         waiting, self._candidates = sorted(self._candidates, key=lambda c: c.length), []
         for c in waiting:
             if self._offer_query.expired():   # a certification would fail ("timeout")
