@@ -481,3 +481,28 @@ def test_moving_obstacles_keeps_compiled_entries_and_answers_with_the_new_pose(w
         fast.set_obstacles({})
     assert fast._entries == kept
     assert fast.is_valid(q)
+
+
+@pytest.mark.parametrize("scene", ["panda_cage", "tabletop_pole"])
+def test_screening_margins_set_for_the_asked_pairs_only(world_of, scene):
+    """ExactChecker.pairs_within sets the security margins of the pairs it is asked about
+    only: after a subset was asked with other margins, the answers for all pairs and for
+    another subset are those of a checker that never saw the other margins."""
+    from chekhov import World
+
+    used, fresh = world_of(scene).exact, World.load(scene).exact
+    n = len(used.collision_pairs)
+    rng = np.random.default_rng(13)
+    seen = 0
+    for q in world_of(scene).robot.sample_uniform(rng, 30):
+        m_a, m_b = rng.choice([0.0, 0.01, 0.05], n), rng.choice([0.0, 0.02, 0.08], n)
+        used.pairs_within(q, m_a, rng.choice(n, n // 3, replace=False))
+        ref = fresh.pairs_within(q, m_b)
+        np.testing.assert_array_equal(used.pairs_within(q, m_b), ref)
+        for size in (n // 10, n // 2):   # one pair at a time, and coal's all-pairs call
+            sub = np.sort(rng.choice(n, size, replace=False))
+            used.pairs_within(q, m_a, sub)
+            np.testing.assert_array_equal(used.pairs_within(q, m_b, sub),
+                                          np.intersect1d(ref, sub))
+        seen += len(ref) > 0
+    assert seen >= 5, seen
