@@ -167,10 +167,10 @@ def exact_path_decision(fast: FastChecker, exact: ExactChecker, path: Array,
     ``time.perf_counter()`` value, s) passed before the decision.
 
     The fast checker walks :data:`CHUNK_SEGMENTS` segments at a time with clearance
-    certificates (near the deadline in calls of ``dense_path.visit_budget`` configurations); from
-    each configuration it flags,
-    coal checks the next :data:`EXACT_WINDOW` configurations of that segment, and the fast
-    walk resumes after them (or after those coal's own certificates cover).
+    certificates (near the deadline in calls of ``dense_path.visit_budget`` configurations);
+    from each configuration it flags, coal checks the next :data:`EXACT_WINDOW`
+    configurations of that segment, and the fast walk resumes after them (or after those
+    coal's own certificates cover).
     """
     P = np.ascontiguousarray(path, dtype=np.float64)
     coal_ = _Coal.make(fast, exact, P, int(substeps))

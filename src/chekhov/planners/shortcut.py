@@ -23,8 +23,8 @@ def shortcut_path(fast: FastChecker, path: Array, resolution: float = 0.02,
     jump over: from each kept waypoint, go to the farthest later waypoint it sees. Candidate
     jumps are screened at a ``coarse`` resolution (batched motion checks, farthest first, so
     that nearer ones are not screened once a far one is taken), then the farthest survivor is
-    confirmed at ``resolution`` (rad) before it is taken. The result's waypoints
-    are a subsequence of the input's, its segments are free at ``resolution``, and it is never
+    confirmed at ``resolution`` (rad) before it is taken. The result's waypoints are a
+    subsequence of the input's, its segments are free at ``resolution``, and it is never
     longer (the path's own segments are assumed free, as a planner's are). After ``deadline``
     (a ``time.perf_counter()`` value, s) the rest of the path is kept as it is."""
     P = np.atleast_2d(np.asarray(path, dtype=float))
