@@ -17,14 +17,18 @@ for us). Keys: scene, family, paths, ``segments_median`` (after resampling),
 the certificates skip), ``us_per_visit_median`` (the walk's time over its visits). Times are
 wall times on this machine: compare them only within one run.
 
-Measured (2026-11-28, tabletop_container and panda_cage task cases, 40 each): the walk is
-80-99% of the decision (median 1.5 of 1.9 ms, 1.9 of 1.9 ms); it looks at 1 in 4.5 and 1 in
-2.9 samples (575 and 670 visits a path, ~2 µs each).
-Tried and not kept: carrying the certificates from one segment to the next (more visits:
-they then run out one at a time instead of together at each segment's start) and, with it,
-renewing those about to run out whenever one configuration is looked at (26% fewer visits, the
-same time: each visit then renews more); one walk call for the whole path instead of 8
-segments a call (tabletop 5-9% faster, panda_cage no faster).
+Measured (2026-11-28, task cases, 40 a scene): the walk is 80-99% of the decision
+(tabletop_container median 1.5 of 1.9 ms, panda_cage 1.9 of 1.9 ms); with the lever bounds
+alone it looked at 1 sample in 4.5 and in 2.9 (575 and 670 visits a path, ~2 µs each), with
+each configuration's own distances to the joint axes (``motion_bounds.clear_for``) 1 in 8.5
+and in 4.9 (365 and 432; shelf_boxes 1759 → 1134, kitchen 1854 → 1142, panda_table_shelf
+789 → 469). This machine's timings varied by up to 2x from run to run here: compare old and
+new alternating, several times. Tried and not kept: carrying the certificates from one
+segment to the next (more visits: they then run out one at a time instead of together at
+each segment's start) and, with it, renewing those about to run out whenever one
+configuration is looked at (26% fewer visits, the same time: each visit then renews more);
+one walk call for the whole path instead of 8 segments a call (tabletop 5-9% faster,
+panda_cage no faster).
 """
 
 from __future__ import annotations

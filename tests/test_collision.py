@@ -506,3 +506,55 @@ def test_screening_margins_set_for_the_asked_pairs_only(world_of, scene):
                                           np.intersect1d(ref, sub))
         seen += len(ref) > 0
     assert seen >= 5, seen
+
+
+@pytest.mark.parametrize("scene", ["shelf_boxes", "panda_cage"])
+def test_local_clearance_bound_holds_along_the_motion(world_of, scene):
+    """The dense walk's certificate from this configuration's distances to the joint axes
+    (motion_bounds.clear_for, the lever bound left out): along the straight motion, the group's
+    centre — and, with the group's radius, each of its spheres' centres — moves less than d
+    for as many substeps as it says (up to 300), by forward kinematics at half substeps. It
+    is longer than the lever bound's in most cases (else it would not be worth having)."""
+    from chekhov.collision import motion_bounds
+
+    w = world_of(scene)
+    pk = w.fast.packed
+    chain, groups, spheres = pk.chain, pk.groups, pk.spheres
+    rng = np.random.default_rng(21)
+    K, G = w.robot.dof, len(groups.radius)
+    n = 101
+    curve = np.empty((G, 2))
+    longer = checked = 0
+    for _ in range(8):
+        q0 = w.robot.sample_uniform(rng, 1)[0]
+        u = rng.normal(size=K) * rng.uniform(0.0, 1.0, K)   # some joints barely move
+        q1 = q0 + 0.16 * u / np.linalg.norm(u)
+        dq = np.abs(q1 - q0) / n
+        Rc, pc = (np.ascontiguousarray(a) for a in w.fast.joint_placements(q0))
+        gwc = np.einsum("gab,gb->ga", Rc[groups.joint], groups.centre) + pc[groups.joint]
+        for g in range(G):
+            motion_bounds.curvature(g, dq, chain.parent, groups.joint, groups.radius,
+                                  groups.lever, curve)
+            members = np.arange(groups.start[g], groups.start[g + 1])
+            moving = np.zeros(K, dtype=bool)   # the joints that move the group
+            i = int(groups.joint[g])
+            while i >= 0:
+                moving[i], i = True, int(chain.parent[i])
+            for which, r in ((0, 0.0), (1, float(groups.radius[g]))):
+                d = float(rng.uniform(0.002, 0.1))
+                s = motion_bounds.clear_for(d, g, r, curve[g, which], np.inf, dq, chain.parent,
+                                          groups.joint, chain.axis, Rc, pc, gwc)
+                lever_step = float((dq * (groups.lever[g] + r) * moving).sum())
+                longer += s > d / max(lever_step, 1e-300)
+                checked += 1
+                for t in np.linspace(0.0, min(s, 300), 2 * min(s, 300) + 1):
+                    R, p = w.fast.joint_placements(q0 + t * (q1 - q0) / n)
+                    if which == 0:
+                        c = R[groups.joint[g]] @ groups.centre[g] + p[groups.joint[g]]
+                        assert np.linalg.norm(c - gwc[g]) < d, (g, t, s)
+                    else:
+                        j = spheres.joint[members]
+                        now = np.einsum("sab,sb->sa", R[j], spheres.centre[members]) + p[j]
+                        then = np.einsum("sab,sb->sa", Rc[j], spheres.centre[members]) + pc[j]
+                        assert np.linalg.norm(now - then, axis=1).max() < d, (g, t, s)
+    assert longer > 0.5 * checked, (longer, checked)
