@@ -212,6 +212,20 @@ def test_cached_cases_of_another_world_are_regenerated(world, world_of, tmp_path
     CaseSet.load(path, world)
 
 
+def test_cached_cases_are_kept_per_robot(world, tmp_path):
+    """The same scene with another arm (``World(scene, robot)``) has a cache name of its own:
+    looking its cases up neither finds the first arm's file nor removes it as unusable (they
+    replaced each other's file on every use)."""
+    from chekhov import Robot, World
+
+    cached_cases(world, 2, seed=5, cache_dir=tmp_path)
+    (path,) = tmp_path.iterdir()
+    panda = World(world.scene, Robot.load("panda"))
+    assert cache_stem(panda, 5) != cache_stem(world, 5)
+    assert find_cached(panda, tmp_path, cache_stem(panda, 5), 2) is None
+    assert path.exists() and find_cached(world, tmp_path, cache_stem(world, 5), 2) is not None
+
+
 # --- roadmap files -------------------------------------------------------------------------
 def test_empty_or_truncated_roadmap_file_names_the_file(roadmap_bytes, tmp_path):
     path = tmp_path / "cut.npz"

@@ -79,10 +79,10 @@ def default_cache_dir() -> Path:
 def cached_cases(world: World, n: int, seed: int = 0, cache_dir: str | Path | None = None,
                  family: str = "random") -> CaseSet:
     """The n cases of ``generate_cases(world, n, seed, family)``, generated on first use and
-    cached (``{scene}-{hash[:12]}-{family}-s{seed}-n{n}.npz``). A cached file with at least n
-    cases is reused (its first n cases are the same cases). A cached file that cannot be used
-    is regenerated (with a warning on the ``chekhov`` logger, which goes to stderr unless
-    configured) and written atomically."""
+    cached (``{cache_stem}-n{n}.npz``). A cached file with at least n cases is reused (its
+    first n cases are the same cases). A cached file that cannot be used is regenerated (with
+    a warning on the ``chekhov`` logger, which goes to stderr unless configured) and written
+    atomically."""
     d = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     stem = cache_stem(world, seed, family=family)
     cases = find_cached(world, d, stem, n, family)
@@ -93,9 +93,12 @@ def cached_cases(world: World, n: int, seed: int = 0, cache_dir: str | Path | No
 
 
 def cache_stem(world: World, seed: int, kind: str = "", family: str = "random") -> str:
-    """File name stem of cached cases: scene, content hash, family, seed and ``kind``."""
-    return (f"{world.scene.name}-{world.scene.content_hash()[:12]}-{check_family(family)}"
-            f"-s{seed}{kind}")
+    """File name stem of cached cases: scene, the scene's and the robot's content hashes,
+    family, seed and ``kind`` (the robot's too: one scene with two arms, e.g. a URDF given to
+    ``World(scene, robot)``, has two case sets, which would otherwise replace each other's
+    file on every use)."""
+    return (f"{world.scene.name}-{world.scene.content_hash()[:12]}"
+            f"-{world.robot.content_hash()[:8]}-{check_family(family)}-s{seed}{kind}")
 
 
 def find_cached(world: World, cache_dir: Path, stem: str, n: int, family: str | None = None
