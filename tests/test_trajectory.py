@@ -321,12 +321,15 @@ def test_a_planners_timed_answer_is_exactly_free_when_sampled_densely(world_of, 
     path's end, respects the robot's limits, and its samples every 2 ms — not its knots — are
     collision-free by the exact checker. RRTConnect (OMPL seeds its own sampler, so its paths
     differ from run to run) may end "collision" when the certification rejects its path: at
-    least 2 of 3 answers; Roadmap + TrajOpt all 3."""
+    least 2 of 3 answers; Roadmap + TrajOpt all 3. The planner is warmed up first: a cold
+    process's first plan compiles its kernels within the 2 s limit and may leave too little of
+    it to time the answer (as documented: no trajectory, ``timing_error`` says why)."""
     world = world_of("tabletop_pole")
     roadmap = build_roadmap(world, RoadmapConfig(n_nodes=150, n_region_nodes=20,
                                                  n_wrist_nodes=60, seed=3))
     planner = make_planner(planner_name, world, roadmap)
     assert planner.timing == TimingConfig()      # the default
+    planner.warmup()
     from chekhov.bench.cases import generate_cases
     cases = generate_cases(world, 3, seed=9)
     limits = joint_limits(world.robot.velocity_limit, planner.timing)
@@ -338,7 +341,8 @@ def test_a_planners_timed_answer_is_exactly_free_when_sampled_densely(world_of, 
             continue
         solved += 1
         traj = r.trajectory
-        assert traj is not None and traj.joint_names == world.robot.joint_names
+        assert traj is not None, r.info.get("timing_error")
+        assert traj.joint_names == world.robot.joint_names
         assert np.allclose(traj.positions[0], r.path[0]) and np.allclose(traj.positions[-1],
                                                                           r.path[-1])
         ts = np.arange(0.0, traj.duration, 0.002) + 0.0007
