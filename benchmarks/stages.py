@@ -9,7 +9,9 @@ family, cases, ``mean_ms`` / ``median_ms`` (``result.time_s``), ``first_median_m
 (``result.first_solution_s``), ``stage_ms_per_case`` (stage → mean ms a case, over all cases,
 0 where a stage did not run), ``stage_runs`` (stage → how many cases ran it),
 ``certify_ms_per_case`` (the certification of offered paths, ``timing_s["offers"]`` and
-``["certify"]``), ``final_from`` (stage → cases whose final answer it gave),
+``["certify"]``), ``route_check_ms_per_case`` (the roadmap route's own check before it is
+offered, ``timing_s["route_check"]``), ``first_from_route`` (cases whose first answer was
+the route itself), ``final_from`` (stage → cases whose final answer it gave),
 ``abandoned_runs`` (TrajOpt runs stopped as unable to beat the answer). Times are wall
 times on this machine: compare them only within one run (alternate old and new code).
 """
@@ -43,18 +45,21 @@ def bench_scene(scene: str, family: str, n: int, seed: int, limit_s: float) -> d
     stage_s: dict[str, float] = defaultdict(float)
     runs: Counter[str] = Counter()
     final: Counter[str] = Counter()
-    total, first, certify, abandoned = [], [], [], 0
+    total, first, certify, route, abandoned = [], [], [], [], 0
+    from_route = 0
     for i in range(len(cases)):
         r = planner.plan(cases.q_start[i], cases.goal(i), limit_s)
         total.append(r.time_s)
         if r.success:
             first.append(r.first_solution_s)
             final[r.solutions[-1].stage.value] += 1
+            from_route += r.solutions[0].stage.value == "roadmap_seed"
         for s in r.stages:
             stage_s[s.stage.value] += s.time_s
             abandoned += s.status is PlanStatus.ABANDONED
         runs.update({s.stage.value for s in r.stages})
         certify.append(r.timing_s.get("offers", 0.0) + r.timing_s.get("certify", 0.0))
+        route.append(r.timing_s.get("route_check", 0.0))
     k = len(cases)
     return {"scene": scene, "family": family, "cases": k,
             "mean_ms": round(float(np.mean(total)) * 1e3, 2),
@@ -63,6 +68,8 @@ def bench_scene(scene: str, family: str, n: int, seed: int, limit_s: float) -> d
             "stage_ms_per_case": {s: round(v / k * 1e3, 2) for s, v in stage_s.items()},
             "stage_runs": dict(runs),
             "certify_ms_per_case": round(float(np.mean(certify)) * 1e3, 2),
+            "route_check_ms_per_case": round(float(np.mean(route)) * 1e3, 2),
+            "first_from_route": from_route,
             "final_from": dict(final), "abandoned_runs": abandoned}
 
 

@@ -1,7 +1,9 @@
 """Anytime answers: the first certified path arrives in milliseconds, improvements follow.
 
-Roadmap + TrajOpt offers a path as soon as one is certified (a roadmap route, shortcut, exact
-check at 100 substeps), then shortens it while time is left (more goal routes, TrajOpt).
+Roadmap + TrajOpt offers a path as soon as one is certified — the roadmap route itself, whose
+edges were certified when the roadmap was built (only its ends' connections and its nodes'
+cells are checked now), then the shortcut route (exact check at 100 substeps) — and shortens
+it while time is left (more goal routes, TrajOpt).
 ``on_solution`` hears of each at once — a robot can start moving on the first.
 
     python examples/05_anytime.py

@@ -32,8 +32,8 @@ def test_dynamic_obstacle_example_replans_around_the_forearm():
 def test_anytime_example_hears_its_solutions_in_order():
     stdout = _run("05_anytime.py")
     lines = stdout.splitlines()
-    heard = [ln for ln in lines if ln.strip().endswith(("shortcut", "routes", "optimise",
-                                                         "straight_line", "retry"))]
+    heard = [ln for ln in lines if ln.strip().endswith((
+        "roadmap_seed", "shortcut", "routes", "optimise", "straight_line", "retry"))]
     assert heard and lines[-1].startswith("solved: first answer after")
     times = [float(ln.split()[0]) for ln in heard]
     lengths = [float(ln.split()[2]) for ln in heard]

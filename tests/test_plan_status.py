@@ -67,18 +67,23 @@ def test_the_paper_planner_reports_seed_shortcut_and_optimise(world, cases, road
 
 
 def test_the_default_planner_answers_from_the_roadmap_first(world, cases, roadmap):
-    """The first answer is the shortcut roadmap route; a straight-line TrajOpt runs only when
-    that answer is longer than ``straight_line_ratio`` times the straight line."""
+    """The first answer is the roadmap route itself (its edges certified when the roadmap
+    was built, no dynamic obstacle here), else the shortcut route; a straight-line TrajOpt
+    runs only when the shortcut route is longer than ``straight_line_ratio`` times the
+    straight line."""
     planner = RoadmapTrajOpt(world, roadmap)
+    firsts = []
     for i in range(len(cases)):
         r = planner.plan(cases.q_start[i], cases.goal(i), 2.0)
         assert r.success, r.status
         assert r.stages[0].stage is Stage.ROADMAP_SEED
-        assert r.solutions[0].stage is Stage.SHORTCUT
+        firsts.append(r.solutions[0].stage)
+        assert r.solutions[0].stage in (Stage.ROADMAP_SEED, Stage.SHORTCUT)
         assert r.seed_from in {Stage.STRAIGHT_LINE, Stage.ROADMAP_SEED}
         if r.stage(Stage.STRAIGHT_LINE) is not None:   # the first answer was long
             line = np.linalg.norm(r.path[-1] - cases.q_start[i])
             assert r.solutions[0].length_rad > line
+    assert firsts.count(Stage.ROADMAP_SEED) >= len(cases) // 2, firsts
 
 
 def test_anytime_solutions_come_in_order_each_certified_and_shorter(world, cases, roadmap):

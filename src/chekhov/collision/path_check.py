@@ -146,6 +146,12 @@ CERTIFY_MAX_SEGMENT_RAD = 0.16
 """rad: a certified path's longer segments are split evenly first, so that its substeps are
 never more than 0.0016 rad apart (TrajOpt's waypoint spacing, the paper's)."""
 
+CERTIFICATION_ID = "exact_path_decision/substeps=100/max_segment=0.16/cells/2026-11-28"
+"""Names what :func:`motion_certified` proves. A roadmap whose edges passed it records this
+(``RoadmapMeta.notes["edges_certified_by"]``), and a path's certificate may then be composed
+from those edges (``route_check.route_decision``): change it whenever the decision's meaning
+changes, so that roadmaps built before are no longer taken at their word."""
+
 
 def motion_certified(fast: FastChecker, exact: ExactChecker, q_a: Array, q_b: Array,
                      deadline: float = math.inf) -> bool:

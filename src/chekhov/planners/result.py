@@ -92,7 +92,8 @@ class PlanResult:
         if not any(r.stage in _TRAJOPT_STAGES for r in self.stages):
             return None
         return bool(self.success and self.solutions
-                    and self.solutions[-1].stage in (Stage.SHORTCUT, Stage.ROUTES,
+                    and self.solutions[-1].stage in (Stage.ROADMAP_SEED, Stage.SHORTCUT,
+                                                       Stage.ROUTES,
                                                        Stage.SIMPLIFY))
 
     @property

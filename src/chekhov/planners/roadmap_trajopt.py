@@ -12,6 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from chekhov.collision.distance_terms import TrajectoryDistances
+from chekhov.collision.route_check import route_decision
 from chekhov.errors import ChekhovError
 from chekhov.planners.anytime import AnytimeRun
 from chekhov.planners.base import PlannerBase, PlanResult, path_length, resample_path
@@ -20,7 +21,7 @@ from chekhov.planners.shortcut import partial_shortcut, shortcut_path
 from chekhov.planners.status import PlanStatus, Stage, scalar_items
 from chekhov.planners.trajopt_planner import optimise_report
 from chekhov.roadmap.graph import Roadmap
-from chekhov.roadmap.seeder import RoadmapSeeder, SeederConfig
+from chekhov.roadmap.seeder import RoadmapSeeder, SeederConfig, SeedResult
 from chekhov.robot.goal import Goal
 from chekhov.trajopt.config import TrajOptConfig
 from chekhov.trajopt.problem import build_trajopt, straight_line_seed
@@ -189,6 +190,8 @@ class RoadmapTrajOpt(PlannerBase):
             paths, stage = self._repair(run), Stage.REPAIR
         if not paths:
             return None, None, status
+        if stage is Stage.ROADMAP_SEED:
+            self._offer_route(run, s)
         t = time.perf_counter()
         seed = min((self._shortcut(p, query) for p in paths), key=path_length)
         run.timing["shortcut"] = time.perf_counter() - t
@@ -196,6 +199,24 @@ class RoadmapTrajOpt(PlannerBase):
         run.offer(seed, Stage.SHORTCUT, seed=seed,
                   info={"roadmap_seed": paths[0], "fallback_to_seed": False})
         return seed, stage, status
+
+    def _offer_route(self, run: AnytimeRun, route: SeedResult) -> None:
+        """The roadmap's route itself, offered first when its edges need no check (they
+        passed the certification's own when the roadmap was built, and no dynamic obstacle
+        is in the world): only its connections to the roadmap and the cells at its nodes are
+        decided (``collision.route_check``), so a certified answer comes before the
+        shortcut, which then improves on it."""
+        assert route.path is not None
+        t = time.perf_counter()
+        known = self.seeder.certified_segments(route.path, route.node_path)
+        if known.any():
+            decision = route_decision(self.world.fast, self.world.exact, route.path, known,
+                                      run.offer_deadline)
+            if decision.certificate is not None:
+                run.offer(route.path, Stage.ROADMAP_SEED, seed=route.path,
+                          certificate=decision.certificate,
+                          info={"roadmap_seed": route.path, "fallback_to_seed": False})
+        run.timing["route_check"] = time.perf_counter() - t
 
     def _repair(self, run: AnytimeRun) -> list[Array]:
         """The tree repair's path (a list of one), or an empty list."""

@@ -16,7 +16,7 @@ from scipy.spatial import cKDTree
 
 from chekhov.collision.exact import ExactChecker
 from chekhov.collision.fast import FastChecker
-from chekhov.collision.path_check import motion_certified
+from chekhov.collision.path_check import CERTIFICATION_ID, motion_certified
 from chekhov.roadmap.config import RoadmapConfig
 from chekhov.roadmap.errors import RoadmapError
 from chekhov.roadmap.graph import FORMAT_VERSION, NODE_KINDS, Roadmap, RoadmapMeta
@@ -211,6 +211,8 @@ class _Builder:
                          f"{sum(checked.values())} free")
         self.notes["candidate_edges_checked"] = n_checked
         self.notes["edges_failing_certification"] = self._uncertified
+        if cfg.certify_edges:   # what they passed (a route's check may rest on it)
+            self.notes["edges_certified_by"] = CERTIFICATION_ID
         edges = np.array(sorted(p for p, v in checked.items() if v), dtype=np.int64)
         edges = edges.reshape(-1, 2)
         lengths = np.linalg.norm(nodes[edges[:, 1]] - nodes[edges[:, 0]], axis=1)

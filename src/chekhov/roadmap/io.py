@@ -29,6 +29,7 @@ from typing import IO, Any
 import numpy as np
 
 from chekhov.atomic import write_atomic
+from chekhov.collision.path_check import CERTIFICATION_ID
 from chekhov.roadmap.checks import check_arrays, check_meta, read_npz
 from chekhov.roadmap.config import RoadmapConfig
 from chekhov.roadmap.errors import RoadmapError, RoadmapMismatchError
@@ -211,7 +212,8 @@ def load_or_build_roadmap(world: World, config: RoadmapConfig | None = None,
     """The roadmap at ``path`` (default :func:`default_roadmap_path`) when it was built for
     this world with this config; otherwise build one and save it there.
 
-    A file that cannot be used (truncated, corrupt, malformed, another world or config) is
+    A file that cannot be used (truncated, corrupt, malformed, another world or config, or
+    edges certified by another version of the check, ``path_check.CERTIFICATION_ID``) is
     rebuilt and overwritten; the reason goes to ``progress``, else (for an unreadable file)
     to the ``chekhov`` logger as a warning. A file of a newer format version is not
     overwritten: :class:`RoadmapMismatchError`. Stale temporaries of killed saves to ``path``
@@ -225,9 +227,13 @@ def load_or_build_roadmap(world: World, config: RoadmapConfig | None = None,
         try:
             meta = read_meta(path)
             check_compatible(meta, world, path)
-            if meta["config"] == config:
+            certified_by = meta["notes"].get("edges_certified_by")
+            if meta["config"] == config and (not config.certify_edges
+                                             or certified_by == CERTIFICATION_ID):
                 return load_roadmap(path, world)
-            reason, level = "built with another config", logging.INFO
+            reason = "built with another config" if meta["config"] != config else \
+                f"its edges passed another certification ({certified_by or 'not recorded'})"
+            level = logging.INFO
         except RoadmapMismatchError as e:
             if "format version" in str(e):
                 raise

@@ -6,10 +6,12 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from itertools import pairwise
 
 import numpy as np
 from numpy.typing import NDArray
 
+from chekhov.collision.path_check import CERTIFICATION_ID
 from chekhov.roadmap.build import distal_values
 from chekhov.roadmap.config import SeederConfig
 from chekhov.roadmap.connect import Connection, Connector
@@ -87,6 +89,10 @@ class RoadmapSeeder:
         self._ee_position = NearestNodes(roadmap.ee_position)
         self._ee_rotation = np.ascontiguousarray(roadmap.ee_rotation, dtype=np.float64)
         self.validity = RoadmapValidity(roadmap, world.fast, self.resolution)
+        # the edges passed this code's certification of a segment, for this robot
+        self._edges_certified = bool(
+            roadmap.config.certify_edges and meta.robot_hash == world.robot.content_hash()
+            and meta.notes.get("edges_certified_by") == CERTIFICATION_ID)
         self.kpaths = KShortestPaths(roadmap)
         P, distal = distal_values(world, roadmap.config)
         self.connector = Connector(world, roadmap, self.validity, self.config, self.resolution,
@@ -118,6 +124,30 @@ class RoadmapSeeder:
         found = self.goal_ik.resolve(Goal.pose(T), n=n, seeds=seeds, near=near,
                                      deadline=deadline)
         return found.Q, found.reason
+
+    def certified_segments(self, path: Array, node_path: IntArray) -> NDArray[np.bool_]:
+        """(T - 1,) which segments of a route ``path`` (T, K) rad are roadmap edges between
+        consecutive nodes of its ``node_path`` (the nodes' configurations bit for bit) that
+        passed the certification's own check of a segment when the roadmap was built, in the
+        world it was built for: this robot, and no dynamic obstacle now
+        (``collision.route_check``). All False otherwise."""
+        P = np.asarray(path, dtype=float)
+        known = np.zeros(max(len(P) - 1, 0), dtype=bool)
+        self.validity.refresh()
+        if not (self._edges_certified and self.validity.all_valid) or len(node_path) < 2:
+            return known
+        rm = self.roadmap
+        Q = rm.nodes[node_path]
+        found = [o for o in np.flatnonzero((Q[0] == P).all(axis=1))
+                 if np.array_equal(P[o:o + len(Q)], Q)]
+        if not found:
+            return known
+        o = int(found[0])
+        for i, (a, b) in enumerate(pairwise(node_path.tolist())):
+            row = rm.indices[rm.indptr[a]:rm.indptr[a + 1]]    # a's neighbours, sorted
+            j = int(np.searchsorted(row, b))
+            known[o + i] = j < len(row) and row[j] == b
+        return known
 
     # --- query --------------------------------------------------------------------------
     def seed(self, q_start: Array, goal: Goal) -> SeedResult:

@@ -1,0 +1,149 @@
+"""A route's certificate composed from its roadmap edges' (``collision.route_check``): the same
+verdict and certificate as the whole path's decision, checked densely by coal too; the cells
+at the nodes decided; trusted only in the world the roadmap was built for; the planner's
+first answer the route itself; roadmap files whose edges passed another check rebuilt."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from chekhov.bench.cases import generate_cases
+from chekhov.collision.exact import densify
+from chekhov.collision.path_check import CERTIFICATION_ID, exact_path_decision
+from chekhov.collision.route_check import route_decision
+from chekhov.paths import resample_path
+from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt
+from chekhov.planners.status import Stage
+from chekhov.roadmap.build import build_roadmap
+from chekhov.roadmap.config import RoadmapConfig
+from chekhov.roadmap.io import load_or_build_roadmap, save_roadmap
+from chekhov.roadmap.seeder import RoadmapSeeder
+from chekhov.scene.model import Shape
+
+SMALL = RoadmapConfig(n_nodes=300, n_region_nodes=20, n_wrist_nodes=60, seed=3)
+
+
+@pytest.fixture(scope="module")
+def world(world_of):
+    return world_of("shelf_boxes")
+
+
+@pytest.fixture(scope="module")
+def roadmap(world):
+    return build_roadmap(world, SMALL)
+
+
+@pytest.fixture(scope="module")
+def seeder(world, roadmap):
+    return RoadmapSeeder(world, roadmap)
+
+
+def _routes(world, seeder, n):
+    cases = generate_cases(world, n, seed=5, family="tasks")
+    out = []
+    for i in range(len(cases)):
+        s = seeder.seeds(cases.q_start[i], cases.goal(i), 1)[0]
+        if s.path is not None:
+            out.append(s)
+    return out
+
+
+def test_the_roadmap_records_the_check_its_edges_passed(roadmap):
+    assert roadmap.meta.notes["edges_certified_by"] == CERTIFICATION_ID
+
+
+def test_a_routes_composed_decision_is_the_whole_paths(world, seeder):
+    """On the shelf's task routes (into the levels, between the boxes): the decision that
+    leaves the certified edges out agrees with the whole resampled path's, certificate
+    included, and coal finds every configuration at 4x the substeps free."""
+    world.set_obstacles({})
+    composed = 0
+    for s in _routes(world, seeder, 20):
+        known = seeder.certified_segments(s.path, s.node_path)
+        assert known.shape == (len(s.path) - 1,)
+        composed += bool(known.any())
+        mine = route_decision(world.fast, world.exact, s.path, known)
+        D = resample_path(s.path, 0.16)
+        whole = exact_path_decision(world.fast, world.exact, D, 100)
+        assert mine.valid == whole.valid
+        if mine.valid:
+            assert mine.certificate.digest == whole.certificate.digest
+            assert world.exact.valid(densify(D, 400)).all()
+    assert composed >= 10
+
+
+def test_the_cells_at_known_segments_ends_are_decided(world, seeder):
+    """Segments falsely marked known around a waypoint that is in collision: the waypoint's
+    cell is still decided, so the path fails; unmarked, the runs' own decisions fail it."""
+    world.set_obstacles({})
+    s = next(r for r in _routes(world, seeder, 10) if len(r.path) >= 4)
+    P = s.path.copy()
+    k = len(P) // 2
+    # an obstacle on the end effector at waypoint k
+    T = world.robot.compute_ee_pose(P[k])
+    world.set_obstacles({"probe": (Shape("sphere", (0.03,)), T)})
+    try:
+        assert not world.exact.is_valid(P[k])
+        known = np.zeros(len(P) - 1, dtype=bool)
+        known[k - 1] = known[k] = True
+        assert route_decision(world.fast, world.exact, P, known).valid is False
+        assert route_decision(world.fast, world.exact, P, ~known).valid is False
+        assert route_decision(world.fast, world.exact, P, np.zeros_like(known)).valid is False
+    finally:
+        world.set_obstacles({})
+
+
+def test_edges_are_trusted_only_in_the_world_they_were_certified_in(world, roadmap, seeder):
+    world.set_obstacles({})
+    s = next(r for r in _routes(world, seeder, 10) if len(r.node_path) >= 2)
+    assert seeder.certified_segments(s.path, s.node_path).any()
+    far = np.eye(4)
+    far[:3, 3] = (5.0, 5.0, 5.0)          # a dynamic obstacle nowhere near the arm
+    world.set_obstacles({"far": (Shape("sphere", (0.05,)), far)})
+    try:
+        assert not seeder.certified_segments(s.path, s.node_path).any()
+    finally:
+        world.set_obstacles({})
+    other_check = replace(roadmap, meta=replace(roadmap.meta, notes={
+        **roadmap.meta.notes, "edges_certified_by": "an older check"}))
+    assert not RoadmapSeeder(world, other_check).certified_segments(s.path, s.node_path).any()
+    shifted = s.path.copy()
+    shifted[1:-1] += 1e-9                 # not the nodes bit for bit
+    assert not seeder.certified_segments(shifted, s.node_path).any()
+
+
+def test_the_planners_first_answer_is_the_route_itself(world, roadmap):
+    """With no dynamic obstacle the first certified answer is the roadmap route (then
+    improved); with one it is the shortcut route, checked whole."""
+    world.set_obstacles({})
+    planner = RoadmapTrajOpt(world, roadmap)
+    cases = generate_cases(world, 8, seed=7, family="tasks")
+    firsts = []
+    for i in range(len(cases)):
+        heard = []
+        r = planner.plan(cases.q_start[i], cases.goal(i), 2.0, on_solution=heard.append)
+        if r.success:
+            firsts.append(heard[0].stage)
+            assert r.path_length <= heard[0].length_rad + 1e-9
+    assert len(firsts) >= 6 and firsts.count(Stage.ROADMAP_SEED) >= len(firsts) - 1
+    far = np.eye(4)
+    far[:3, 3] = (5.0, 5.0, 5.0)
+    world.set_obstacles({"far": (Shape("sphere", (0.05,)), far)})
+    try:
+        r = planner.plan(cases.q_start[0], cases.goal(0), 2.0)
+        assert r.success and r.solutions[0].stage is not Stage.ROADMAP_SEED
+    finally:
+        world.set_obstacles({})
+
+
+def test_a_roadmap_file_certified_by_another_check_is_rebuilt(world, roadmap, tmp_path):
+    path = tmp_path / "shelf.npz"
+    older = replace(roadmap, meta=replace(roadmap.meta, notes={
+        **roadmap.meta.notes, "edges_certified_by": "an older check"}))
+    save_roadmap(older, path)
+    said = []
+    again = load_or_build_roadmap(world, SMALL, path, progress=said.append)
+    assert any("another certification" in m for m in said), said
+    assert again.meta.notes["edges_certified_by"] == CERTIFICATION_ID
+    assert load_or_build_roadmap(world, SMALL, path).meta.created == again.meta.created
