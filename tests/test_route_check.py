@@ -10,7 +10,7 @@ import pytest
 
 from chekhov.bench.cases import generate_cases
 from chekhov.collision.exact import densify
-from chekhov.collision.path_check import CERTIFICATION_ID, exact_path_decision
+from chekhov.collision.path_check import CERTIFICATION_ID, cells_free, exact_path_decision
 from chekhov.collision.route_check import route_decision
 from chekhov.paths import resample_path
 from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt
@@ -147,3 +147,22 @@ def test_a_roadmap_file_certified_by_another_check_is_rebuilt(world, roadmap, tm
     assert any("another certification" in m for m in said), said
     assert again.meta.notes["edges_certified_by"] == CERTIFICATION_ID
     assert load_or_build_roadmap(world, SMALL, path).meta.created == again.meta.created
+
+
+def test_cells_decided_together_as_each_alone(world, rng):
+    """cells_free (one screen of all the middle samples with the largest cell's margins, a
+    cell's own decision where it alarms) against each cell's own decision, on cells of random
+    free configurations (some near the shelf) and with one colliding cell among them."""
+    world.set_obstacles({})
+    Q = world.robot.sample_uniform(rng, 400)
+    Q = Q[world.fast.valid(Q)][:60]
+    step = rng.normal(size=(len(Q), 2, Q.shape[1])) * 0.0016 / np.sqrt(Q.shape[1])
+    cells = np.stack([Q - step[:, 0], Q, Q + step[:, 1]], axis=1)
+    alone = [exact_path_decision(world.fast, world.exact, c, 0).valid for c in cells]
+    assert cells_free(world.fast, world.exact, cells) is all(alone)
+    free = cells[np.array(alone, dtype=bool)]
+    assert len(free) >= 50 and cells_free(world.fast, world.exact, free) is True
+    Qs = world.robot.sample_uniform(rng, 400)
+    hit = Qs[~world.exact.valid(Qs)][0]
+    bad = np.concatenate([free[:10], np.stack([hit, hit, hit])[None], free[10:20]])
+    assert cells_free(world.fast, world.exact, bad) is False

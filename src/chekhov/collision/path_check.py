@@ -191,6 +191,34 @@ def exact_path_decision(fast: FastChecker, exact: ExactChecker, path: Array,
                                               fast.obstacles_version))
 
 
+def cells_free(fast: FastChecker, exact: ExactChecker, cells: Array,
+               deadline: float = math.inf) -> bool | None:
+    """Whether each cell (M, 3, K) rad — a sample and the samples on either side of it —
+    passes :func:`exact_path_decision` as a path of its own with no substeps, which proves
+    the middle sample free and every collision pair apart over its cell (the half-steps
+    towards its neighbours). Decided together: one screen of the middle samples with the
+    margins of the largest of all the cells' steps (a pass there proves every cell), and
+    each cell's own decision only where that screen alarms. None: ``deadline``
+    (``time.perf_counter()`` value, s) passed first."""
+    C = np.ascontiguousarray(cells, dtype=np.float64)
+    if len(C) == 0:
+        return True
+    Q = np.ascontiguousarray(C[:, 1] if len(C) > 1 else C[[0, 0], 1])   # the walk's path
+    steps = np.concatenate([C[:, 1] - C[:, 0], C[:, 2] - C[:, 1]])
+    coal_ = _Coal.make(fast, exact, Q, 0, steps)
+    coal_.deadline = deadline
+    try:
+        i = coal_.first_alarm(fast, Q, 0)
+        while i is not None:
+            valid = exact_path_decision(fast, exact, C[min(i, len(C) - 1)], 0, deadline).valid
+            if valid is not True:
+                return valid
+            i = coal_.first_alarm(fast, Q, i + 1) if i + 1 < len(Q) else None
+    except _PastDeadlineError:
+        return None
+    return True
+
+
 class _PastDeadlineError(Exception):
     """The decision's deadline passed (looked at between chunks, windows and coal queries)."""
 
@@ -227,7 +255,8 @@ class _Coal:
     stretch near contact only the pairs near contact are looked at again."""
 
     def __init__(self, exact: ExactChecker, P: Array, substeps: int,
-                 weights: tuple[Array, NDArray[np.int64]] | None) -> None:
+                 weights: tuple[Array, NDArray[np.int64]] | None,
+                 steps: Array | None = None) -> None:
         self.exact = exact
         self.P = P
         self.substeps = substeps
@@ -239,23 +268,27 @@ class _Coal:
         self.deadline = math.inf      # time.perf_counter() value, s
         if weights is not None:
             W, row = weights
-            # m: per pair, the largest motion bound of one step between samples
-            self.L = np.maximum((np.abs(np.diff(P, axis=0)) @ W.T).max(axis=0)
-                                / (substeps + 1), 1e-12)[row]
+            # m: per pair, the largest motion bound of one step between samples (of the
+            # given ``steps`` (M, K) rad instead, when there are)
+            bound = (np.abs(np.diff(P, axis=0)) @ W.T).max(axis=0) / (substeps + 1) \
+                if steps is None else (np.abs(steps) @ W.T).max(axis=0)
+            self.L = np.maximum(bound, 1e-12)[row]
             self.mu = _round_up(0.5 * self.L) + MARGIN_SLACK
             # the screening test's margins: a pass certifies the pair for LOOKAHEAD samples
             self.look = self.mu + LOOKAHEAD * self.L
             self.until = np.full(len(row), -1, dtype=np.int64)
 
     @staticmethod
-    def make(fast: FastChecker, exact: ExactChecker, P: Array, substeps: int) -> _Coal:
+    def make(fast: FastChecker, exact: ExactChecker, P: Array, substeps: int,
+             steps: Array | None = None) -> _Coal:
         """The checks for path P (T, K) at ``substeps``: margins from the path's largest
-        steps; each fast-checker group's confirmation margin the largest of its pairs', and
-        its spheres grown by as much as that exceeds their padding (module docstring)."""
+        steps (or from ``steps`` (M, K) rad, the steps between samples to answer for); each
+        fast-checker group's confirmation margin the largest of its pairs', and its spheres
+        grown by as much as that exceeds their padding (module docstring)."""
         weights = exact.motion_weights
-        if weights is None or len(P) < 2:
+        if weights is None or (len(P) < 2 and steps is None):
             return _Coal(exact, P, substeps, None)
-        coal_ = _Coal(exact, P, substeps, weights)
+        coal_ = _Coal(exact, P, substeps, weights, steps)
         pairs = exact.collision_pairs
         need = np.zeros(exact.geom_model.ngeoms)   # m, per geometry
         np.maximum.at(need, pairs[:, 0], coal_.mu)

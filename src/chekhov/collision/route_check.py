@@ -15,7 +15,8 @@ tests (a start or a goal may lie very near an object). So here
 * every waypoint where a known segment meets another segment — a roadmap node inside the
   route — gets its cell decided: the three samples around it (the samples next to it at the
   certification's spacing on either side, and itself) as a path of their own with no
-  substeps, so that its cell is the one the whole path's decision would have proved.
+  substeps, so that its cell is the one the whole path's decision would have proved
+  (:func:`~chekhov.collision.path_check.cells_free`: all of a route's together).
 
 When all of them pass, the certificate is the one :func:`exact_path_decision` would have given
 the whole resampled path. Measured against it in ``tests/test_route_check.py``.
@@ -35,6 +36,7 @@ from chekhov.collision.path_check import (
     CERTIFY_SUBSTEPS,
     PathCertificate,
     PathDecision,
+    cells_free,
     exact_path_decision,
     path_digest,
 )
@@ -65,11 +67,12 @@ def route_decision(fast: FastChecker, exact: ExactChecker, path: Array,
                                     deadline).valid
         if valid is not True:
             return PathDecision(valid, None)
-    for k in range(1, len(P) - 1):         # the cells where a known segment ends
-        if known[k - 1] or known[k]:
-            valid = exact_path_decision(fast, exact, _cell(D, int(at[k])), 0, deadline).valid
-            if valid is not True:
-                return PathDecision(valid, None)
+    ends = [k for k in range(1, len(P) - 1) if known[k - 1] or known[k]]
+    if ends:                               # the cells where a known segment ends
+        valid = cells_free(fast, exact, np.stack([_cell(D, int(at[k])) for k in ends]),
+                           deadline)
+        if valid is not True:
+            return PathDecision(valid, None)
     return PathDecision(True, PathCertificate(path_digest(D), CERTIFY_SUBSTEPS,
                                               fast.obstacles_version,
                                               resampled_from=path_digest(P)))
