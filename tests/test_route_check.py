@@ -13,7 +13,7 @@ from chekhov.collision.exact import densify
 from chekhov.collision.path_check import CERTIFICATION_ID, cells_free, exact_path_decision
 from chekhov.collision.route_check import route_decision
 from chekhov.paths import resample_path
-from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt
+from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt, RoadmapTrajOptConfig
 from chekhov.planners.status import Stage
 from chekhov.roadmap.build import build_roadmap
 from chekhov.roadmap.config import RoadmapConfig
@@ -115,7 +115,8 @@ def test_edges_are_trusted_only_in_the_world_they_were_certified_in(world, roadm
 
 def test_the_planners_first_answer_is_the_route_itself(world, roadmap):
     """With no dynamic obstacle the first certified answer is the roadmap route (then
-    improved); with one it is the shortcut route, checked whole."""
+    improved); with one it is the shortcut route, checked whole; so it is without
+    improvements."""
     world.set_obstacles({})
     planner = RoadmapTrajOpt(world, roadmap)
     cases = generate_cases(world, 8, seed=7, family="tasks")
@@ -135,6 +136,11 @@ def test_the_planners_first_answer_is_the_route_itself(world, roadmap):
         assert r.success and r.solutions[0].stage is not Stage.ROADMAP_SEED
     finally:
         world.set_obstacles({})
+    # a planner that does not improve (the executive's) answers with the shortcut route
+    quick = RoadmapTrajOpt(world, roadmap, RoadmapTrajOptConfig(improve_time_s=0.0))
+    r = quick.plan(cases.q_start[0], cases.goal(0), 2.0)
+    assert r.success and [s.stage for s in r.solutions] == [Stage.SHORTCUT]
+    assert "route_check" not in r.timing_s
 
 
 def test_a_roadmap_file_certified_by_another_check_is_rebuilt(world, roadmap, tmp_path):

@@ -190,7 +190,7 @@ class RoadmapTrajOpt(PlannerBase):
             paths, stage = self._repair(run), Stage.REPAIR
         if not paths:
             return None, None, status
-        if stage is Stage.ROADMAP_SEED:
+        if stage is Stage.ROADMAP_SEED and self.config.improve_time_s > 0:
             self._offer_route(run, s)
         t = time.perf_counter()
         seed = min((self._shortcut(p, query) for p in paths), key=path_length)
@@ -205,7 +205,9 @@ class RoadmapTrajOpt(PlannerBase):
         passed the certification's own when the roadmap was built, and no dynamic obstacle
         is in the world): only its connections to the roadmap and the cells at its nodes are
         decided (``collision.route_check``), so a certified answer comes before the
-        shortcut, which then improves on it."""
+        shortcut, which then improves on it. Not with ``improve_time_s`` 0 (the executive's
+        replans): the shortcut route is then the answer, and the route's check would only
+        add to it."""
         assert route.path is not None
         t = time.perf_counter()
         known = self.seeder.certified_segments(route.path, route.node_path)
