@@ -128,7 +128,7 @@ class RoadmapTrajOpt(PlannerBase):
        roadmap (:mod:`chekhov.roadmap.repair`) until the time limit: the query fails only
        when time runs out.
     2. **Improvements**, ending ``improve_time_s`` after the first answer and never later
-       than :data:`FINISH_RESERVE_S` plus the first answer's certification time before the
+       than :data:`FINISH_RESERVE_S` plus the first answer's checks' time before the
        offers' deadline (what follows them — certifying the waiting candidate, the final check —
        must fit), each offered and kept when certified and shorter: routes to more goal IK
        solutions (``goal_routes``), shortcuts between any two points (``simplify_rounds``),
@@ -192,8 +192,10 @@ class RoadmapTrajOpt(PlannerBase):
             return None, None, status
         if stage is Stage.ROADMAP_SEED and self.config.improve_time_s > 0:
             self._offer_route(run, s)
+        # with the route as the answer, the shortcut must leave the final check its time
+        stop = query.deadline if run.best is None else run.offer_deadline - FINISH_RESERVE_S
         t = time.perf_counter()
-        seed = min((self._shortcut(p, query) for p in paths), key=path_length)
+        seed = min((self._shortcut(p, query, stop) for p in paths), key=path_length)
         run.timing["shortcut"] = time.perf_counter() - t
         run.report(Stage.SHORTCUT, PlanStatus.SOLVED, run.timing["shortcut"], seed)
         run.offer(seed, Stage.SHORTCUT, seed=seed,
@@ -246,9 +248,10 @@ class RoadmapTrajOpt(PlannerBase):
         """Straight-line TrajOpt when it promises a shorter path (or there is no seed), else
         TrajOpt from the seed; nothing starts ``improve_time_s`` after the first answer."""
         query, cfg = run.query, self.config
-        # room for certifying a waiting candidate (as long as the first answer's took) and
-        # for the final check
-        stop = run.offer_deadline - FINISH_RESERVE_S - run.timing.get("offers", 0.0)
+        # room for certifying a waiting candidate (as long as the first answer's checks took:
+        # the route's and its offer's) and for the final check
+        stop = run.offer_deadline - FINISH_RESERVE_S - run.timing.get("offers", 0.0) \
+            - run.timing.get("route_check", 0.0)
         if run.best is not None:
             stop = min(stop, time.perf_counter() + cfg.improve_time_s)
         # each stage starts only before the stop (a stage looks at it between its steps, but
