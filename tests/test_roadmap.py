@@ -412,3 +412,34 @@ def test_a_connection_is_kept_until_the_obstacles_change(world, seeder, monkeypa
     late = len(checks)
     conn.connect(Q[7])
     assert late >= 1 and len(checks) > late
+
+
+def test_goal_last_resorts_wait_for_every_goals_cheap_connection(world, seeder, monkeypatch):
+    """The goal configurations' cheap connections are all tried before any last resort (a
+    tree of up to tree_time_s): a first answer takes the second goal that connects directly
+    and never grows the first one's tree; more routes grow it (the goals nearer the start
+    than the first that connected), and every goal gets it only when none connects cheaply."""
+    q_start = _free_configurations(world, 1, seed=11)[0]
+    Q_goal = _free_configurations(world, 3, seed=12)
+    calls = []
+    real = seeder.connector.connect
+
+    def connect(q, last_resorts=True, deadline=float("inf")):
+        i = next((i for i, g in enumerate(Q_goal) if np.array_equal(g, q)), None)
+        calls.append((i, last_resorts))
+        if i == 0 or (i is not None and cheap_fails):
+            return real(q, last_resorts, deadline) if last_resorts and i == 0 else []
+        return real(q, last_resorts, deadline)
+
+    monkeypatch.setattr(seeder.connector, "connect", connect)
+    cheap_fails = False
+    starts, goals = seeder._connect_ends(q_start, Q_goal, 1, float("inf"))
+    assert starts and [g[0][0] for g in goals] == [1]
+    assert (0, True) not in calls and calls[1:] == [(0, False), (1, False)]
+    calls.clear()
+    starts, goals = seeder._connect_ends(q_start, Q_goal, 3, float("inf"))
+    assert calls[1:] == [(0, False), (1, False), (2, False), (0, True)]
+    calls.clear()
+    cheap_fails = True
+    starts, goals = seeder._connect_ends(q_start, Q_goal, 1, float("inf"))
+    assert calls[1:4] == [(0, False), (1, False), (2, False)] and calls[4] == (0, True)

@@ -218,21 +218,34 @@ class RoadmapSeeder:
                       ) -> tuple[list[Connection], list[list[tuple[int, Connection]]]]:
         """Connections of the start, and of up to n_routes goal configurations (each a list
         of (goal index, connection)), to the roadmap; none of the goals' when the start has
-        none."""
+        none.
+
+        Every goal configuration's cheap connections are tried first. The last resorts (a
+        tree, a wide search: up to ``tree_time_s`` each) go, in order until one connects, to
+        every goal when none connected so — or, asked for more routes, to the goals nearer
+        the start than the first that did: a shelf task's nearest IK solution, its hand
+        wedged between two boxes, grew its tree for 0.5 s before the first answer while the
+        next one connected directly; it may still win the more-routes stage."""
         starts = self.connector.connect(q_start, deadline=deadline)
         goals: list[list[tuple[int, Connection]]] = []
         if not starts:
             return starts, goals
         for gi, qg in enumerate(Q_goal):
-            if time.perf_counter() >= deadline:
+            if time.perf_counter() >= deadline or len(goals) == n_routes:
                 break
-            # once one goal connects, the others get no tree (up to tree_time_s each)
-            g = [(gi, c) for c in self.connector.connect(qg, last_resorts=not goals,
+            g = [(gi, c) for c in self.connector.connect(qg, last_resorts=False,
                                                          deadline=deadline)]
             if g:
                 goals.append(g)
-                if len(goals) == n_routes:
-                    break
+        nearer = len(Q_goal) if not goals else (goals[0][0][0] if n_routes > 1 else 0)
+        for gi in range(nearer):
+            if time.perf_counter() >= deadline or len(goals) == n_routes:
+                break
+            g = [(gi, c) for c in self.connector.connect(Q_goal[gi], last_resorts=True,
+                                                         deadline=deadline)]
+            if g:
+                goals.append(g)
+                break
         return starts, goals
 
     def repair(self, q_start: Array, Q_goal: Array, deadline: float) -> RepairResult:
