@@ -33,7 +33,7 @@ import numpy as np
 from chekhov import World, builtin_scenes, load_or_build_roadmap
 from chekhov.cases import cached_cases
 from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt
-from chekhov.planners.status import PlanStatus
+from chekhov.planners.status import PlanStatus, Stage
 
 
 def bench_scene(scene: str, family: str, n: int, seed: int, limit_s: float) -> dict[str, Any]:
@@ -53,7 +53,7 @@ def bench_scene(scene: str, family: str, n: int, seed: int, limit_s: float) -> d
         if r.success:
             first.append(r.first_solution_s)
             final[r.solutions[-1].stage.value] += 1
-            from_route += r.solutions[0].stage.value == "roadmap_seed"
+            from_route += r.solutions[0].stage is Stage.ROADMAP_SEED
         for s in r.stages:
             stage_s[s.stage.value] += s.time_s
             abandoned += s.status is PlanStatus.ABANDONED

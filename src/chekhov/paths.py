@@ -14,6 +14,14 @@ def path_length(path: Array) -> float:
     return float(np.linalg.norm(np.diff(P, axis=0), axis=1).sum()) if len(P) > 1 else 0.0
 
 
+def segment_runs(mask: NDArray[np.bool_]) -> list[tuple[int, int]]:
+    """The maximal runs of True in ``mask`` (T - 1,), one entry per segment of a (T, K) path,
+    as (first waypoint, last waypoint) pairs: segments a … b - 1 join waypoints a … b."""
+    edges = np.diff(np.concatenate([[0], np.asarray(mask).astype(np.int8), [0]]))
+    return [(int(a), int(b)) for a, b in zip(np.flatnonzero(edges == 1),
+                                             np.flatnonzero(edges == -1), strict=True)]
+
+
 def resample_counts(path: Array, max_step: float = 0.16) -> NDArray[np.int64]:
     """(T - 1,) how many points :func:`resample_path` puts on each segment of ``path`` (T, K)
     (its end included; 0 for a repeated waypoint, which it drops)."""

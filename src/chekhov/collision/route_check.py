@@ -40,7 +40,7 @@ from chekhov.collision.path_check import (
     exact_path_decision,
     path_digest,
 )
-from chekhov.paths import resample_counts, resample_path
+from chekhov.paths import resample_counts, resample_path, segment_runs
 
 Array = NDArray[np.float64]
 
@@ -62,7 +62,7 @@ def route_decision(fast: FastChecker, exact: ExactChecker, path: Array,
     if (counts == 0).any():     # a repeated waypoint: the whole path decided, as it is
         known = np.zeros_like(known)
     at = np.concatenate([[0], np.cumsum(counts)])     # P's waypoints in D
-    for a, b in _runs(~known):             # waypoints a … b of P, joined by unknown segments
+    for a, b in segment_runs(~known):             # waypoints a … b of P, joined by unknown segments
         valid = exact_path_decision(fast, exact, D[at[a]:at[b] + 1], CERTIFY_SUBSTEPS,
                                     deadline).valid
         if valid is not True:
@@ -76,14 +76,6 @@ def route_decision(fast: FastChecker, exact: ExactChecker, path: Array,
     return PathDecision(True, PathCertificate(path_digest(D), CERTIFY_SUBSTEPS,
                                               fast.obstacles_version,
                                               resampled_from=path_digest(P)))
-
-
-def _runs(mask: NDArray[np.bool_]) -> list[tuple[int, int]]:
-    """The maximal runs of True in ``mask`` (T - 1,) over segments, as (first waypoint, last
-    waypoint) pairs."""
-    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-    return [(int(a), int(b)) for a, b in zip(np.flatnonzero(edges == 1),
-                                             np.flatnonzero(edges == -1), strict=True)]
 
 
 def _cell(D: Array, j: int) -> Array:

@@ -11,6 +11,7 @@ from numpy.typing import NDArray
 
 from chekhov.collision.path_check import exact_path_decision
 from chekhov.errors import TrajectoryError
+from chekhov.paths import segment_runs
 from chekhov.timing import (
     Timed,
     TimingConfig,
@@ -67,9 +68,7 @@ def off_polyline_runs(Q: Array, path: Array) -> list[tuple[int, int]]:
     seg, dist = polyline_offsets(Q, path)
     on = dist <= ON_POLYLINE_RAD
     leaves = ~(on[:-1] & on[1:] & (seg[:-1] == seg[1:]))           # (N - 1,) chords
-    edges = np.diff(np.concatenate([[0], leaves.astype(np.int8), [0]]))
-    return [(int(a), int(b)) for a, b in zip(np.flatnonzero(edges == 1),
-                                             np.flatnonzero(edges == -1), strict=True)]
+    return segment_runs(leaves)
 
 
 def _exactly_free(world: World, Q: Array) -> bool:

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from chekhov.collision.path_check import CERTIFICATION_ID
 from chekhov.roadmap.config import RoadmapConfig
 from chekhov.roadmap.search import recover_path, yen_k_shortest
 
@@ -15,6 +16,13 @@ IntArray = NDArray[np.int64]
 
 FORMAT_VERSION = 1
 NODE_KINDS: tuple[str, ...] = ("uniform", "pregrasp", "region", "wrist")
+
+
+def edges_certified(config: RoadmapConfig, notes: dict[str, object]) -> bool:
+    """Whether a roadmap's edges passed this code's certification of a segment
+    (``certify_edges``, and its notes name ``path_check.CERTIFICATION_ID``): a route's
+    check may then rest on them, and a cached file without it is rebuilt."""
+    return bool(config.certify_edges and notes.get("edges_certified_by") == CERTIFICATION_ID)
 
 
 @dataclass(frozen=True)

@@ -29,11 +29,10 @@ from typing import IO, Any
 import numpy as np
 
 from chekhov.atomic import write_atomic
-from chekhov.collision.path_check import CERTIFICATION_ID
 from chekhov.roadmap.checks import check_arrays, check_meta, read_npz
 from chekhov.roadmap.config import RoadmapConfig
 from chekhov.roadmap.errors import RoadmapError, RoadmapMismatchError
-from chekhov.roadmap.graph import Roadmap, RoadmapMeta
+from chekhov.roadmap.graph import Roadmap, RoadmapMeta, edges_certified
 from chekhov.world import World
 
 _ARRAYS = ("nodes", "node_kind", "node_label", "ee_position", "ee_rotation", "edges",
@@ -213,9 +212,10 @@ def load_or_build_roadmap(world: World, config: RoadmapConfig | None = None,
     this world with this config; otherwise build one and save it there.
 
     A file that cannot be used (truncated, corrupt, malformed, another world or config, or
-    edges certified by another version of the check, ``path_check.CERTIFICATION_ID``) is
-    rebuilt and overwritten; the reason goes to ``progress``, else (for an unreadable file)
-    to the ``chekhov`` logger as a warning. A file of a newer format version is not
+    edges certified by another version of the check:
+    :func:`~chekhov.roadmap.graph.edges_certified`) is rebuilt and overwritten; the reason
+    goes to ``progress``, else (for an unreadable file) to the ``chekhov`` logger as a
+    warning. A file of a newer format version is not
     overwritten: :class:`RoadmapMismatchError`. Stale temporaries of killed saves to ``path``
     are removed."""
     from chekhov.roadmap.build import build_roadmap
@@ -229,7 +229,7 @@ def load_or_build_roadmap(world: World, config: RoadmapConfig | None = None,
             check_compatible(meta, world, path)
             certified_by = meta["notes"].get("edges_certified_by")
             if meta["config"] == config and (not config.certify_edges
-                                             or certified_by == CERTIFICATION_ID):
+                                             or edges_certified(config, meta["notes"])):
                 return load_roadmap(path, world)
             reason = "built with another config" if meta["config"] != config else \
                 f"its edges passed another certification ({certified_by or 'not recorded'})"

@@ -11,12 +11,11 @@ from itertools import pairwise
 import numpy as np
 from numpy.typing import NDArray
 
-from chekhov.collision.path_check import CERTIFICATION_ID
 from chekhov.roadmap.build import distal_values
 from chekhov.roadmap.config import SeederConfig
 from chekhov.roadmap.connect import Connection, Connector
 from chekhov.roadmap.errors import RoadmapMismatchError
-from chekhov.roadmap.graph import Roadmap
+from chekhov.roadmap.graph import Roadmap, edges_certified
 from chekhov.roadmap.kpaths import KShortestPaths
 from chekhov.roadmap.nearest import NearestNodes, nearest_poses
 from chekhov.roadmap.repair import RepairResult, TreeRepair
@@ -90,9 +89,8 @@ class RoadmapSeeder:
         self._ee_rotation = np.ascontiguousarray(roadmap.ee_rotation, dtype=np.float64)
         self.validity = RoadmapValidity(roadmap, world.fast, self.resolution)
         # the edges passed this code's certification of a segment, for this robot
-        self._edges_certified = bool(
-            roadmap.config.certify_edges and meta.robot_hash == world.robot.content_hash()
-            and meta.notes.get("edges_certified_by") == CERTIFICATION_ID)
+        self._edges_certified = edges_certified(roadmap.config, meta.notes) and \
+            meta.robot_hash == world.robot.content_hash()
         self.kpaths = KShortestPaths(roadmap)
         P, distal = distal_values(world, roadmap.config)
         self.connector = Connector(world, roadmap, self.validity, self.config, self.resolution,
