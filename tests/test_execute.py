@@ -898,5 +898,5 @@ def test_an_exact_check_past_its_budget_answers_not_free(world, planner):
     for budget, free in ((None, True), (0.0, False)):
         c = replace(CONFIG.executor, check_budget_s=budget)
         ex = Executor(world, InlineWorker(world, planner, c.timing), goal, c)
-        assert ex._exact_free(Q, 4) is free
+        assert ex.checks.exact_free(Q, 4, {}) is free
         assert ex.counters.undecided_checks == (0 if free else 1)

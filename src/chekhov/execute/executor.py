@@ -24,7 +24,7 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import NDArray
 
-from chekhov.collision.path_check import exact_path_decision
+from chekhov.execute.checks import MotionChecks
 from chekhov.execute.evade import Evader, EvadeSettings, past
 from chekhov.execute.interface import Command, Counters, ExecutorConfig, Observation, Reaction
 from chekhov.execute.motion import (
@@ -82,13 +82,13 @@ class Executor:
         join back onto the motion, else the stop; None when this step saw no kick."""
         self.reactions: list[Reaction] = []
         self.counters = Counters()
+        self.checks = MotionChecks(world, self.config, self.bounds, self.counters)
         self._last: Command | None = None
         self._need: str | None = "start"
         self._pending: PlanRequest | None = None
         self._budget = self.config.planning_budget_s
         self._token = 0
         self._seen: Obstacles = {}
-        self._exact_has: Obstacles | None = None
         self._submit_wall = 0.0
         self._held = -1
         self._deadline: float | None = None
@@ -217,7 +217,7 @@ class Executor:
             for move in ev.escapes(start, t, self._seen, self._deadline):
                 if past(self._deadline):
                     break
-                if self._free(move, t):
+                if self.checks.free(move, t, self._seen):
                     self.counters.dodges += 1
                     return move
         self._search_again = bool(self.tracks.tracks) and (ev.cut_short or past(self._deadline))
@@ -249,7 +249,8 @@ class Executor:
         (obstacles tracked) without: a kicked arm beside the forearm had stopped where it
         stood, in the forearm's way."""
         for b in backs:
-            if self._free(b, t, b.pieces[0].t_end + 0.1) or self._safe([b], t).all():
+            if self.checks.free(b, t, self._seen, b.pieces[0].t_end + 0.1) or \
+                    self._safe([b], t).all():
                 return b
         return next((b for b in backs if self.tracks.tracks and
                      self.evader.safe_in_time([b], t, self._seen, 0.0).all()), None)
@@ -262,7 +263,7 @@ class Executor:
         self._search_again = False
         self._seen = predicted_obstacles(self.tracks, t, c.horizon_s, c.margin_m)
         self.world.fast.set_obstacles(self._seen)
-        t_hit = self._first_conflict(self.motion, t)
+        t_hit = self.checks.first_conflict(self.motion, t, self._seen)
         if t_hit is None:
             return
         if not any(r.kind == "obstacle" and r.t_resolved is None for r in self.reactions):
@@ -370,7 +371,7 @@ class Executor:
         self.worker.submit(request)
         self._submit_wall += time.perf_counter() - w0
         self.world.fast.set_obstacles(self._seen)   # an inline worker planned in this world
-        self._exact_has = None
+        self.checks.forget_exact()
 
     def _poll(self, t: float) -> None:
         req = self._pending
@@ -423,7 +424,8 @@ class Executor:
         for offset in self.config.join_offsets_s:    # (from outside the limits: back in)
             new = join(start, t_join, target, min(offset, target.t_end), self.limits,
                        self.bounds if inside else None)
-            if new is not None and self._free(new, t_join, new.pieces[0].t_end + 0.1):
+            if new is not None and self.checks.free(new, t_join, self._seen,
+                                                    new.pieces[0].t_end + 0.1):
                 return new
             if new is not None and not self.world.fast.valid(start.q[None])[0] and \
                     self.evader.safe_in_time([new], t_join, self._seen, 0.0).all():
@@ -467,55 +469,6 @@ class Executor:
     def _safe(self, motions: list[Motion], t0: float) -> NDArray[np.bool_]:
         """:meth:`Evader.safe_in_time <chekhov.execute.evade.Evader.safe_in_time>`."""
         return self.evader.safe_in_time(motions, t0, self._seen)
-
-    # --- checks -----------------------------------------------------------------------
-    def _first_conflict(self, motion: Motion, t: float) -> float | None:
-        """The first time (s) from t at which ``motion`` is in collision with the world's
-        current obstacles (the fast checker: it never calls free what the exact one calls
-        in collision), or None."""
-        if t >= motion.t_end:
-            ts, Q = np.array([t]), motion.sample(t).q[None]
-        else:
-            ts, Q = motion.positions(t, motion.t_end, self.config.check_dt_s)
-        ok = self.world.fast.valid(Q)
-        if ok.all():
-            return None
-        i = int(np.argmin(ok))
-        if self._exact_free(Q[i:], 1):
-            return None
-        return float(ts[i])
-
-    def _free(self, motion: Motion, t: float, until: float = math.inf) -> bool:
-        """Whether ``motion`` from t (to ``until``, s) is within the joint limits (no further out
-        than its start, when that is out) and free (the exact decision at the check step, and
-        at ≤ 0.02 rad steps)."""
-        _, Q = motion.positions(t, min(motion.t_end, until), self.config.check_dt_s)
-        lo, hi = self.bounds
-        excess = float(max(np.max(lo - Q[0]), np.max(Q[0] - hi), 0.0))   # a start outside
-        if not self.world.robot.within_limits(Q, tol=excess + 1e-9).all():
-            return False
-        step = float(np.abs(np.diff(Q, axis=0)).max(initial=0.0))
-        sub = max(1, math.ceil(step / 0.02))
-        return self._exact_free(Q, sub)
-
-    def _exact_free(self, Q: Array, substeps: int) -> bool:
-        """The exact decision on the polyline Q (N, K) rad at ``substeps``; False (the safe
-        answer) when it takes longer than ``check_budget_s``."""
-        self._sync_exact()
-        budget = self.config.check_budget_s
-        deadline = math.inf if budget is None else time.perf_counter() + budget
-        valid = exact_path_decision(self.world.fast, self.world.exact, Q, substeps,
-                                    deadline).valid
-        if valid is None:
-            self.counters.undecided_checks += 1
-        return bool(valid)
-
-    def _sync_exact(self) -> None:
-        """The exact checker holds the obstacles the fast one does (set only when needed:
-        4 ms against the fast checker's 0.3)."""
-        if self._exact_has is not self._seen:
-            self.world.exact.set_obstacles(self._seen)
-            self._exact_has = self._seen
 
     # --- bookkeeping ------------------------------------------------------------------
     def _install(self, motion: Motion) -> None:
