@@ -51,12 +51,13 @@ from chekhov.collision import dense_path
 from chekhov.collision.path_check import (
     CERTIFY_MAX_SEGMENT_RAD,
     CERTIFY_SUBSTEPS,
-    _Coal,
     exact_path_decision,
+    screen_margins,
 )
 from chekhov.paths import path_length, resample_path
 from chekhov.planners.query import make_query
 from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt
+from chekhov.planners.shortcut import shortcut_path
 
 Array = np.ndarray
 
@@ -71,7 +72,8 @@ def first_answers(world: World, family: str, n: int, seed: int) -> list[Array]:
         found = planner.seeder.seeds(query.q_start, query.goal, 1, deadline=query.deadline)
         paths = [f.path for f in found if f.path is not None]
         if paths:
-            best = min((planner._shortcut(p, query) for p in paths), key=path_length)
+            best = min((shortcut_path(world.fast, p, deadline=query.deadline) for p in paths),
+                       key=path_length)
             out.append(resample_path(best, CERTIFY_MAX_SEGMENT_RAD))
     return out
 
@@ -80,12 +82,12 @@ def walk(world: World, P: Array, visits: int = dense_path.NO_BUDGET) -> tuple[in
     """The certification's walk over P's samples, resumed after each alarm: (calls, finished
     within ``visits`` a call)."""
     fast = world.fast
-    coal_ = _Coal.make(fast, world.exact, P, CERTIFY_SUBSTEPS)
+    pad, grow = screen_margins(fast, world.exact, P, CERTIFY_SUBSTEPS)
     size = (len(P) - 1) * (CERTIFY_SUBSTEPS + 1) + 1
     start = calls = 0
     while True:
         i, resume = fast.run_kernel(dense_path.first_dense_collision, P, CERTIFY_SUBSTEPS,
-                                    start, visits, coal_.pad, coal_.grow)
+                                    start, visits, pad, grow)
         calls += 1
         if resume >= 0:
             return calls, False

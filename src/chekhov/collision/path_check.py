@@ -219,6 +219,16 @@ def cells_free(fast: FastChecker, exact: ExactChecker, cells: Array,
     return True
 
 
+def screen_margins(fast: FastChecker, exact: ExactChecker, path: Array, substeps: int
+                   ) -> tuple[Array, Array]:
+    """(pad, grow) (G,) m, per fast-checker group: the confirmation margins and sphere growth
+    with which :func:`exact_path_decision` screens ``path`` (T, K) rad at ``substeps`` (the
+    last two arguments of ``dense_path.first_dense_collision``; module docstring). Empty
+    arrays: no motion bound, the screen as it is."""
+    coal_ = _Coal.make(fast, exact, np.ascontiguousarray(path, dtype=np.float64), substeps)
+    return coal_.pad, coal_.grow
+
+
 class _PastDeadlineError(Exception):
     """The decision's deadline passed (looked at between chunks, windows and coal queries)."""
 
