@@ -157,7 +157,7 @@ def test_a_seed_that_fails_its_certification_is_a_failure_with_that_reason(world
                                 PlanStatus.GOAL_UNMET),
                                (np.vstack([q0, outside, qg]), Goal.configuration(qg),
                                 PlanStatus.JOINT_LIMITS)):
-        planner.seeder.seeds = lambda q, g, n, deadline=np.inf, p=path: [SeedResult(
+        planner.seeder.seeds = lambda q, g, n, deadline=np.inf, p=path, **k: [SeedResult(
             True, "solved", p, np.empty(0, dtype=np.int64), p[-1], {"total": 0.0}, {})]
         planner._optimise = lambda *a, **k: False          # no TrajOpt to rescue it
         r = planner.plan(q0, goal, 2.0)

@@ -58,7 +58,7 @@ def test_roadmap_trajopt_repairs_when_every_route_is_cut(world, roadmap, monkeyp
     the repair (a REPAIR stage, seed_from), certified, checked here by other means."""
     planner = RoadmapTrajOpt(world, roadmap)
 
-    def cut(q_start, goal, n_routes, deadline=np.inf):
+    def cut(q_start, goal, n_routes, deadline=np.inf, goal_nodes_first=False):
         return [SeedResult(False, "no_path", None, np.empty(0, dtype=np.int64), None,
                            {"total": 0.0}, {})]
 

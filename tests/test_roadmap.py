@@ -287,6 +287,50 @@ def test_dynamic_obstacle_on_the_shortest_path_reroutes(world, roadmap, seeder):
     pytest.fail("no query found whose path a probe obstacle blocks")
 
 
+def test_a_pregrasp_pose_goal_ends_at_its_roadmap_node(world, roadmap, seeder):
+    """A pose goal some roadmap nodes meet (a pre-grasp node for its pre-grasp pose): its goal
+    nodes are exactly the nodes within the IK's tolerances by pinocchio's FK of every node
+    (not the roadmap's stored poses), and a query asked for them first routes to one of them
+    bit for bit (no goal connection); a node in a dynamic obstacle is not one."""
+    pregrasp = roadmap.nodes_of_kind("pregrasp")
+    assert len(pregrasp) >= 4
+    poses = [world.robot.compute_ee_pose(q) for q in roadmap.nodes]
+
+    def meeting(T):
+        out = set()
+        for m, T_m in enumerate(poses):
+            cos = (np.trace(T_m[:3, :3].T @ T[:3, :3]) - 1) / 2
+            if np.linalg.norm(T_m[:3, 3] - T[:3, 3]) <= 1e-4 and \
+                    np.arccos(np.clip(cos, -1, 1)) <= 1e-3:
+                out.add(m)
+        return out
+
+    starts = _free_configurations(world, 6, 5)
+    ended = empty = 0
+    for k, n in enumerate(pregrasp[:6]):
+        T = poses[n]
+        nodes = seeder.goal_nodes(Goal.pose(T))
+        assert int(n) in nodes.tolist() and set(nodes.tolist()) == meeting(T)
+        r = seeder.seeds(starts[k], Goal.pose(T), 1, goal_nodes_first=True)[0]
+        if r.success:
+            ended += 1
+            assert any(np.array_equal(r.path[-1], roadmap.nodes[m]) for m in nodes)
+            assert world.fast.path_valid(r.path, seeder.resolution)
+        off = T.copy()
+        off[:3, 3] += 0.01 * np.array([np.cos(k), np.sin(k), 0.0])
+        assert set(seeder.goal_nodes(Goal.pose(off)).tolist()) == meeting(off)
+        empty += not meeting(off)
+    assert ended >= 4 and empty >= 3
+    n = int(pregrasp[0])
+    T_wrist = world.robot.compute_joint_placements(roadmap.nodes[n])[-1]
+    world.add_obstacle("probe", Shape("sphere", (0.06,)), T_wrist)
+    try:
+        assert not world.fast.is_valid(roadmap.nodes[n])
+        assert n not in seeder.goal_nodes(Goal.pose(poses[n])).tolist()
+    finally:
+        world.remove_obstacle("probe")
+
+
 # --- CLI ----------------------------------------------------------------------------------
 def test_cli_build_and_info(tmp_path, capsys):
     out = tmp_path / "pole.npz"

@@ -115,19 +115,25 @@ def test_edges_are_trusted_only_in_the_world_they_were_certified_in(world, roadm
 
 def test_the_planners_first_answer_is_the_route_itself(world, roadmap):
     """With no dynamic obstacle the first certified answer is the roadmap route (then
-    improved); with one it is the shortcut route, checked whole; so it is without
-    improvements."""
+    improved), ending at a roadmap node of the goal pose when it has one (a pre-grasp node:
+    no goal connection to check); with one it is the shortcut route, checked whole; so it is
+    without improvements."""
     world.set_obstacles({})
     planner = RoadmapTrajOpt(world, roadmap)
     cases = generate_cases(world, 8, seed=7, family="tasks")
-    firsts = []
+    firsts, at_node = [], 0
     for i in range(len(cases)):
         heard = []
         r = planner.plan(cases.q_start[i], cases.goal(i), 2.0, on_solution=heard.append)
         if r.success:
             firsts.append(heard[0].stage)
             assert r.path_length <= heard[0].length_rad + 1e-9
+            nodes = planner.seeder.goal_nodes(cases.goal(i))
+            if len(nodes) and heard[0].stage is Stage.ROADMAP_SEED:
+                assert any(np.array_equal(heard[0].path[-1], q) for q in roadmap.nodes[nodes])
+                at_node += 1
     assert len(firsts) >= 6 and firsts.count(Stage.ROADMAP_SEED) >= len(firsts) - 1
+    assert at_node >= 3
     far = np.eye(4)
     far[:3, 3] = (5.0, 5.0, 5.0)
     world.set_obstacles({"far": (Shape("sphere", (0.05,)), far)})

@@ -178,7 +178,10 @@ class RoadmapTrajOpt(PlannerBase):
         repair) path, offered; (None, None, why) when there is none."""
         query = run.query
         t = time.perf_counter()
-        found = self.seeder.seeds(query.q_start, query.goal, 1, deadline=query.deadline)
+        # a first answer to improve on: the route cheapest to certify (ending at a roadmap node
+        # of the goal's pose, when there is one); without improvements, the shortest
+        found = self.seeder.seeds(query.q_start, query.goal, 1, deadline=query.deadline,
+                                  goal_nodes_first=self.config.improve_time_s > 0)
         s = found[0]
         run.timing["seed"] = s.timing_s.get("total", time.perf_counter() - t)
         status = PlanStatus.of(s.status)

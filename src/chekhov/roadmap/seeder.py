@@ -28,6 +28,15 @@ from chekhov.world import World
 Array = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
+GOAL_NODE_POSITION_M = 1e-4
+GOAL_NODE_ROTATION_RAD = 1e-3
+"""m and rad: a roadmap node whose end effector is this near a pose goal is one of the goal's
+configurations (:meth:`RoadmapSeeder.goal_nodes`): the goal resolver's IK calls a seed
+converged at these errors (``ChainKinematics.solve``'s defaults), and the roadmap's
+pre-grasp nodes are such solutions of their poses."""
+GOAL_NODE_CANDIDATES = 8
+"""Nodes nearest a pose goal (position, then rotation) looked at for goal nodes."""
+
 
 @dataclass(frozen=True, eq=False)
 class SeedResult:
@@ -123,6 +132,33 @@ class RoadmapSeeder:
                                      deadline=deadline)
         return found.Q, found.reason
 
+    def goal_nodes(self, goal: Goal, near: Array | None = None) -> IntArray:
+        """Roadmap nodes that are configurations of the pose ``goal``: their end effector within
+        :data:`GOAL_NODE_POSITION_M` and :data:`GOAL_NODE_ROTATION_RAD` of it (and of the goal's
+        own tolerances), valid in the world now; nearest ``near`` (K,) first. A pre-grasp node
+        is one for its object's pre-grasp pose (the paper's premise: the workspace is a limited
+        set of pre-grasp poses, and the roadmap holds them), and a route ending there needs
+        neither a goal connection nor a check of one."""
+        if not goal.is_pose or self.roadmap.n_nodes == 0:
+            return np.empty(0, dtype=np.int64)
+        assert goal.T_world_ee is not None
+        T = np.asarray(goal.T_world_ee, dtype=float)
+        k = min(GOAL_NODE_CANDIDATES, self.roadmap.n_nodes)
+        idx = nearest_poses(self._ee_position, self._ee_rotation, T, k, k)
+        dp = np.linalg.norm(self.roadmap.ee_position[idx] - T[:3, 3], axis=1)
+        # rotation angle of R_nodeᵀ R_goal, from its trace
+        tr = np.einsum("nij,ij->n", self._ee_rotation[idx], T[:3, :3])
+        da = np.arccos(np.clip((tr - 1.0) / 2.0, -1.0, 1.0))
+        ok = (dp <= min(GOAL_NODE_POSITION_M, goal.position_tolerance)) & \
+            (da <= min(GOAL_NODE_ROTATION_RAD, goal.orientation_tolerance))
+        idx = idx[ok]
+        self.validity.refresh()
+        idx = idx[self.validity.nodes_valid(idx)]
+        if near is not None and len(idx) > 1:
+            idx = idx[np.argsort(np.linalg.norm(self.roadmap.nodes[idx] - near, axis=1),
+                                 kind="stable")]
+        return idx
+
     def certified_segments(self, path: Array, node_path: IntArray) -> NDArray[np.bool_]:
         """(T - 1,) which segments of a route ``path`` (T, K) rad are roadmap edges between
         consecutive nodes of its ``node_path`` (the nodes' configurations bit for bit) that
@@ -153,13 +189,15 @@ class RoadmapSeeder:
         through the first goal IK solution that connects to the roadmap."""
         return self.seeds(q_start, goal, 1)[0]
 
-    def seeds(self, q_start: Array, goal: Goal, n_routes: int, deadline: float = math.inf
-              ) -> list[SeedResult]:
+    def seeds(self, q_start: Array, goal: Goal, n_routes: int, deadline: float = math.inf,
+              *, goal_nodes_first: bool = False) -> list[SeedResult]:
         """Up to ``n_routes`` seed paths from q_start (K,) to the goal, each ending at another
         of the pose goal's IK solutions (those that connect to the roadmap, in the order
-        :meth:`goal_configurations` gives them). On failure, one unsuccessful result; status
-        "timeout" when ``deadline`` (a ``time.perf_counter()`` value, s) passed before an
-        answer. ``timing_s`` is the whole query's, shared by all."""
+        :meth:`goal_configurations` gives them, nearest the start first; with
+        ``goal_nodes_first`` the goal's roadmap nodes (:meth:`goal_nodes`) before them: the
+        cheapest route to certify, not the shortest). On failure, one unsuccessful result;
+        status "timeout" when ``deadline`` (a ``time.perf_counter()`` value, s) passed before
+        an answer. ``timing_s`` is the whole query's, shared by all."""
         t0 = time.perf_counter()
         timing = {"ik": 0.0, "connect": 0.0, "search": 0.0, "validate": 0.0}
         robot, fast = self.world.robot, self.world.fast
@@ -175,7 +213,8 @@ class RoadmapSeeder:
         if not (robot.within_limits(q_start)[0] and fast.is_valid(q_start)):
             return fail("invalid_start", reason="start outside the limits or in collision")
         t = time.perf_counter()
-        Q_goal, status, why = self._goal_set(q_start, goal, n_routes, deadline)
+        Q_goal, status, why = self._goal_set(q_start, goal, n_routes, deadline,
+                                             goal_nodes_first)
         timing["ik"] = time.perf_counter() - t
         if status:
             return fail(status, reason=why)
@@ -197,14 +236,22 @@ class RoadmapSeeder:
         return [SeedResult(True, "solved", path, nodes, q_goal, timing,
                            {**info, "checks": checks}) for path, nodes, q_goal, info in found]
 
-    def _goal_set(self, q_start: Array, goal: Goal, n_routes: int, deadline: float
-                  ) -> tuple[Array, str, str]:
-        """(goal configurations (n, K) nearest the start first, failure status, reason)."""
+    def _goal_set(self, q_start: Array, goal: Goal, n_routes: int, deadline: float,
+                  nodes_first: bool = False) -> tuple[Array, str, str]:
+        """(goal configurations (n, K) nearest the start first — with ``nodes_first``, the
+        goal's roadmap nodes before the others —, failure status, reason)."""
         robot = self.world.robot
         if goal.is_pose:
             assert goal.T_world_ee is not None
-            Q_goal, why = self.goal_configurations(
-                goal.T_world_ee, max(self.config.n_goal_ik, n_routes), deadline, near=q_start)
+            n = max(self.config.n_goal_ik, n_routes)
+            Q_goal, why = self.goal_configurations(goal.T_world_ee, n, deadline, near=q_start)
+            nodes = self.roadmap.nodes[self.goal_nodes(goal, q_start)] if nodes_first else \
+                self.roadmap.nodes[:0]
+            if len(nodes):      # the goal's roadmap nodes first, then other IK solutions
+                sep = self.goal_ik.config.min_separation
+                other = [q for q in Q_goal
+                         if np.linalg.norm(nodes - q, axis=1).min() >= sep]
+                Q_goal = np.vstack([nodes, *[q[None] for q in other]])[:max(n, len(nodes))]
             return Q_goal, "" if len(Q_goal) else "no_ik", why
         assert goal.q is not None
         q_goal = robot.check_configuration(goal.q, "goal configuration")
