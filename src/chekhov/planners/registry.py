@@ -7,8 +7,9 @@ name                      planner
 ``Roadmap+TrajOpt``       :class:`~chekhov.planners.roadmap_trajopt.RoadmapTrajOpt` on the
                           scene's roadmap (``load_or_build_roadmap``): ours, with a 40 ms
                           straight-line TrajOpt try before the roadmap seed
-``Roadmap+TrajOpt(paper)`` the same with ``straight_line_first=False``: the paper's planner,
-                          every query seeded from the roadmap
+``Roadmap+TrajOpt(paper)`` the same with ``straight_line_first=False`` and the paper's
+                          0.16 rad seed spacing: the paper's planner, every query seeded
+                          from the roadmap
 ``TrajOpt``               :class:`~chekhov.planners.trajopt_planner.TrajOptPlanner`, straight-
                           line seed, T = 30
 ``RRTConnect``            OMPL RRTConnect (the bidirectional RRT that OpenRAVE's BasicRRT is,
@@ -110,7 +111,10 @@ class PlannerSpec:
         name = canonical_planner_name(self.name)
         if name in ("Roadmap+TrajOpt", "Roadmap+TrajOpt(paper)"):
             from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt, RoadmapTrajOptConfig
-            config = RoadmapTrajOptConfig(straight_line_first=name == "Roadmap+TrajOpt")
+            from chekhov.trajopt.config import TrajOptConfig
+            config = RoadmapTrajOptConfig(straight_line_first=True) if \
+                name == "Roadmap+TrajOpt" else \
+                RoadmapTrajOptConfig(straight_line_first=False, trajopt=TrajOptConfig())
             return RoadmapTrajOpt(world, roadmap(), config, name=name)
         if name == "TrajOpt":
             return TrajOptPlanner(world, name=name)
