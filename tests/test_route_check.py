@@ -73,6 +73,38 @@ def test_a_routes_composed_decision_is_the_whole_paths(world, seeder):
     assert composed >= 10
 
 
+def test_runs_passed_before_are_not_decided_again_until_the_obstacles_change(
+        world, seeder, monkeypatch):
+    """With ``PassedRuns`` a route's unknown runs that passed are skipped the next time (the
+    same verdict and certificate), and decided again once the obstacles changed."""
+    import chekhov.collision.route_check as rc
+    world.set_obstacles({})
+    routes = [(s.path, seeder.certified_segments(s.path, s.node_path))
+              for s in _routes(world, seeder, 8)]
+    routes = [(p, k) for p, k in routes if k.any() and not k.all()]
+    assert len(routes) >= 4
+    decided = []
+    real = rc.exact_path_decision
+    monkeypatch.setattr(rc, "exact_path_decision",
+                        lambda *a, **kw: decided.append(1) or real(*a, **kw))
+    passed = rc.PassedRuns()
+    first = [route_decision(world.fast, world.exact, p, k, passed=passed) for p, k in routes]
+    n_first = len(decided)
+    assert n_first >= len(routes)
+    again = [route_decision(world.fast, world.exact, p, k, passed=passed) for p, k in routes]
+    assert len(decided) == n_first + sum(d.valid is not True for d in first)
+    for a, b in zip(first, again, strict=True):
+        assert a.valid == b.valid
+        if a.valid:
+            assert a.certificate.digest == b.certificate.digest
+    far = np.eye(4)
+    far[:3, 3] = (5.0, 5.0, 5.0)
+    world.set_obstacles({"far": (Shape("sphere", (0.05,)), far)})
+    world.set_obstacles({})
+    route_decision(world.fast, world.exact, *routes[0], passed=passed)
+    assert len(decided) > n_first + sum(d.valid is not True for d in first)
+
+
 def test_the_cells_at_known_segments_ends_are_decided(world, seeder):
     """Segments falsely marked known around a waypoint that is in collision: the waypoint's
     cell is still decided, so the path fails; unmarked, the runs' own decisions fail it."""

@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from chekhov.collision.distance_terms import TrajectoryDistances
-from chekhov.collision.route_check import route_decision
+from chekhov.collision.route_check import PassedRuns, route_decision
 from chekhov.errors import ChekhovError
 from chekhov.planners.anytime import AnytimeRun
 from chekhov.planners.base import PlannerBase, PlanResult, path_length, resample_path
@@ -176,6 +176,7 @@ class RoadmapTrajOpt(PlannerBase):
         self.name = name
         self._trajopt = self.config.trajopt
         self._distances = TrajectoryDistances(world.fast)
+        self._passed_runs = PassedRuns()
 
     def _plan(self, query: PlanQuery) -> PlanResult:
         run = AnytimeRun(self.world, query)
@@ -237,7 +238,7 @@ class RoadmapTrajOpt(PlannerBase):
         known = self.seeder.certified_segments(route.path, route.node_path)
         if known.any():
             decision = route_decision(self.world.fast, self.world.exact, route.path, known,
-                                      run.offer_deadline)
+                                      run.offer_deadline, self._passed_runs)
             if decision.certificate is not None:
                 run.offer(route.path, Stage.ROADMAP_SEED, seed=route.path,
                           certificate=decision.certificate,
