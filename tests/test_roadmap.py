@@ -291,7 +291,8 @@ def test_a_pregrasp_pose_goal_ends_at_its_roadmap_node(world, roadmap, seeder):
     """A pose goal some roadmap nodes meet (a pre-grasp node for its pre-grasp pose): its goal
     nodes are exactly the nodes within the IK's tolerances by pinocchio's FK of every node
     (not the roadmap's stored poses), and a query asked for them first routes to one of them
-    bit for bit (no goal connection); a node in a dynamic obstacle is not one."""
+    bit for bit (no goal connection); a node in a dynamic obstacle is not one, nor any node
+    of a roadmap built for another version of the robot."""
     pregrasp = roadmap.nodes_of_kind("pregrasp")
     assert len(pregrasp) >= 4
     poses = [world.robot.compute_ee_pose(q) for q in roadmap.nodes]
@@ -321,6 +322,9 @@ def test_a_pregrasp_pose_goal_ends_at_its_roadmap_node(world, roadmap, seeder):
         assert set(seeder.goal_nodes(Goal.pose(off)).tolist()) == meeting(off)
         empty += not meeting(off)
     assert ended >= 4 and empty >= 3
+    other = dataclasses.replace(roadmap, meta=dataclasses.replace(roadmap.meta,
+                                                                   robot_hash="another arm"))
+    assert len(RoadmapSeeder(world, other).goal_nodes(Goal.pose(poses[pregrasp[0]]))) == 0
     n = int(pregrasp[0])
     T_wrist = world.robot.compute_joint_placements(roadmap.nodes[n])[-1]
     world.add_obstacle("probe", Shape("sphere", (0.06,)), T_wrist)

@@ -97,9 +97,10 @@ class RoadmapSeeder:
         self._ee_position = NearestNodes(roadmap.ee_position)
         self._ee_rotation = np.ascontiguousarray(roadmap.ee_rotation, dtype=np.float64)
         self.validity = RoadmapValidity(roadmap, world.fast, self.resolution)
-        # the edges passed this code's certification of a segment, for this robot
-        self._edges_certified = edges_certified(roadmap.config, meta.notes) and \
-            meta.robot_hash == world.robot.content_hash()
+        # the nodes' stored end-effector poses are this robot's, and the edges passed this
+        # code's certification of a segment for it
+        self._same_robot = meta.robot_hash == world.robot.content_hash()
+        self._edges_certified = edges_certified(roadmap.config, meta.notes) and self._same_robot
         self.kpaths = KShortestPaths(roadmap)
         P, distal = distal_values(world, roadmap.config)
         self.connector = Connector(world, roadmap, self.validity, self.config, self.resolution,
@@ -138,8 +139,9 @@ class RoadmapSeeder:
         own tolerances), valid in the world now; nearest ``near`` (K,) first. A pre-grasp node
         is one for its object's pre-grasp pose (the paper's premise: the workspace is a limited
         set of pre-grasp poses, and the roadmap holds them), and a route ending there needs
-        neither a goal connection nor a check of one."""
-        if not goal.is_pose or self.roadmap.n_nodes == 0:
+        neither a goal connection nor a check of one. None when the roadmap was built for
+        another version of the robot (its stored poses could be another arm's)."""
+        if not goal.is_pose or self.roadmap.n_nodes == 0 or not self._same_robot:
             return np.empty(0, dtype=np.int64)
         assert goal.T_world_ee is not None
         T = np.asarray(goal.T_world_ee, dtype=float)
