@@ -63,8 +63,8 @@ class PassedRuns:
             self._digests, self._version = set(), fast.obstacles_version
         return self._digests
 
-    def __contains__(self, item: tuple[FastChecker, Array]) -> bool:
-        fast, samples = item
+    def has(self, fast: FastChecker, samples: Array) -> bool:
+        """Whether the run ``samples`` (N, K) rad passed in ``fast``'s world as it is now."""
         return path_digest(samples) in self._current(fast)
 
     def add(self, fast: FastChecker, samples: Array) -> None:
@@ -96,7 +96,7 @@ def route_decision(fast: FastChecker, exact: ExactChecker, path: Array,
     at = np.concatenate([[0], np.cumsum(counts)])     # P's waypoints in D
     for a, b in segment_runs(~known):             # waypoints a … b of P, joined by unknown segments
         run = D[at[a]:at[b] + 1]
-        if passed is not None and (fast, run) in passed:
+        if passed is not None and passed.has(fast, run):
             continue
         valid = exact_path_decision(fast, exact, run, CERTIFY_SUBSTEPS, deadline).valid
         if valid is not True:

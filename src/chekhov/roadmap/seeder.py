@@ -23,6 +23,7 @@ from chekhov.roadmap.search import astar, path_edges, warm_up
 from chekhov.roadmap.validity import INVALID, RoadmapValidity
 from chekhov.robot.goal import Goal
 from chekhov.robot.goal_ik import GoalIKConfig, GoalResolver
+from chekhov.transforms import rotation_angle
 from chekhov.world import World
 
 Array = NDArray[np.float64]
@@ -148,9 +149,7 @@ class RoadmapSeeder:
         k = min(GOAL_NODE_CANDIDATES, self.roadmap.n_nodes)
         idx = nearest_poses(self._ee_position, self._ee_rotation, T, k, k)
         dp = np.linalg.norm(self.roadmap.ee_position[idx] - T[:3, 3], axis=1)
-        # rotation angle of R_nodeᵀ R_goal, from its trace
-        tr = np.einsum("nij,ij->n", self._ee_rotation[idx], T[:3, :3])
-        da = np.arccos(np.clip((tr - 1.0) / 2.0, -1.0, 1.0))
+        da = np.array([rotation_angle(self._ee_rotation[i], T[:3, :3]) for i in idx])
         ok = (dp <= min(GOAL_NODE_POSITION_M, goal.position_tolerance)) & \
             (da <= min(GOAL_NODE_ROTATION_RAD, goal.orientation_tolerance))
         idx = idx[ok]
@@ -247,13 +246,12 @@ class RoadmapSeeder:
             assert goal.T_world_ee is not None
             n = max(self.config.n_goal_ik, n_routes)
             Q_goal, why = self.goal_configurations(goal.T_world_ee, n, deadline, near=q_start)
-            nodes = self.roadmap.nodes[self.goal_nodes(goal, q_start)] if nodes_first else \
-                self.roadmap.nodes[:0]
-            if len(nodes):      # the goal's roadmap nodes first, then other IK solutions
+            nodes = self.roadmap.nodes[self.goal_nodes(goal, q_start) if nodes_first else
+                                       np.empty(0, dtype=np.int64)]
+            if len(nodes):      # the goal's roadmap nodes first, then the IK solutions apart
                 sep = self.goal_ik.config.min_separation
-                other = [q for q in Q_goal
-                         if np.linalg.norm(nodes - q, axis=1).min() >= sep]
-                Q_goal = np.vstack([nodes, *[q[None] for q in other]])[:max(n, len(nodes))]
+                apart = [np.linalg.norm(nodes - q, axis=1).min() >= sep for q in Q_goal]
+                Q_goal = np.vstack([nodes, Q_goal[apart]])[:max(n, len(nodes))]
             return Q_goal, "" if len(Q_goal) else "no_ik", why
         assert goal.q is not None
         q_goal = robot.check_configuration(goal.q, "goal configuration")
