@@ -124,32 +124,36 @@ def _select(cd, n, C, order):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True)
+def _sd_along(kind, R, p, size, c0, c1, alpha, x):  # pragma: no cover - compiled
+    """sd(c0 + α (c1 - c0)), m (x: (3,) work space)."""
+    for a in range(3):
+        x[a] = c0[a] + alpha * (c1[a] - c0[a])
+    return signed_distance(kind, R, p, size, x)
+
+
+@njit(cache=True, nogil=True)
 def _swept_min(kind, R, p, size, c0, c1, iters):  # pragma: no cover - compiled
     """(min over α ∈ [0, 1] of sd(c0 + α (c1 - c0)), α*): golden-section search (sd is convex
-    along a line for a convex obstacle), ends included."""
+    along a line for a convex obstacle), one new evaluation a step (the other interior point
+    is the last step's), ends included."""
     x = np.empty(3)
     lo, hi = 0.0, 1.0
+    m1, m2 = lo + _GOLDEN * (hi - lo), hi - _GOLDEN * (hi - lo)
+    f1 = _sd_along(kind, R, p, size, c0, c1, m1, x)
+    f2 = _sd_along(kind, R, p, size, c0, c1, m2, x)
     for _ in range(iters):
-        m1 = lo + _GOLDEN * (hi - lo)
-        m2 = hi - _GOLDEN * (hi - lo)
-        for a in range(3):
-            x[a] = c0[a] + m1 * (c1[a] - c0[a])
-        f1 = signed_distance(kind, R, p, size, x)
-        for a in range(3):
-            x[a] = c0[a] + m2 * (c1[a] - c0[a])
-        f2 = signed_distance(kind, R, p, size, x)
-        if f1 <= f2:
-            hi = m2
-        else:
-            lo = m1
+        if f1 <= f2:   # the minimum is in [lo, m2]: m1 becomes its upper interior point
+            hi, m2, f2 = m2, m1, f1
+            m1 = lo + _GOLDEN * (hi - lo)
+            f1 = _sd_along(kind, R, p, size, c0, c1, m1, x)
+        else:          # in [m1, hi]: m2 becomes its lower interior point
+            lo, m1, f1 = m1, m2, f2
+            m2 = hi - _GOLDEN * (hi - lo)
+            f2 = _sd_along(kind, R, p, size, c0, c1, m2, x)
     best_a = 0.5 * (lo + hi)
-    for a in range(3):
-        x[a] = c0[a] + best_a * (c1[a] - c0[a])
-    best = signed_distance(kind, R, p, size, x)
+    best = _sd_along(kind, R, p, size, c0, c1, best_a, x)
     for a_end in (0.0, 1.0):  # the minimum may sit at an end (flat or monotone sd)
-        for a in range(3):
-            x[a] = c0[a] + a_end * (c1[a] - c0[a])
-        f = signed_distance(kind, R, p, size, x)
+        f = _sd_along(kind, R, p, size, c0, c1, a_end, x)
         if f < best:
             best, best_a = f, a_end
     return best, best_a
