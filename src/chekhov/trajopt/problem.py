@@ -74,12 +74,13 @@ class TrajOptProblem:
         dt: seconds between waypoints (nan without a duration).
         velocity_limit: (K,) rad per step; acceleration_limit (K,) rad per step²;
             torque_limit (K,) N·m (inf where absent).
-        end_clearance_m: (2,) m, the sphere model's clearance at the fixed first waypoint and
-            at the last when it is fixed (inf for a pose goal): the clearance the collision
-            constraint asks of the segments and waypoints there, where lower than
-            ``config.min_clearance_m`` (a swept segment is no farther from anything than its
-            ends, so a start 1 mm into the margin made every run "infeasible": four penalty
-            increases, 25-50 ms, for nothing).
+        end_clearance_m: (2,) m, the sphere model's clearance at the seed's first and last
+            waypoints. At a fixed end (the start; the last for a configuration goal) it is the
+            most the collision constraint can ask there (:meth:`required_clearance`: a swept
+            segment is no farther from anything than its ends, so a start 1 mm into the
+            margin made every run "infeasible": four penalty increases, 25-50 ms, for
+            nothing); at a pose goal's end, the most the hinge asks
+            (:meth:`safety_margins`).
     """
 
     world: World
@@ -205,11 +206,11 @@ class TrajOptProblem:
 
     def violations(self, ev: Evaluation) -> dict[str, Array]:
         """Per-term violations (≥ 0) of the penalised constraints at an evaluation."""
-        cfg = self.config
-        d_safe = cfg.safety_margin_m
+        safe_w, safe_s = self.safety_margins()
         out = {
-            "collision": np.concatenate([np.maximum(d_safe - ev.dist_waypoint, 0).ravel(),
-                                         np.maximum(d_safe - ev.dist_segment, 0).ravel()]),
+            "collision": np.concatenate([
+                np.maximum(safe_w[:, None] - ev.dist_waypoint, 0).ravel(),
+                np.maximum(safe_s[:, None] - ev.dist_segment, 0).ravel()]),
             "goal": np.maximum(np.abs(ev.goal_error) - self.goal_tolerance, 0)
             if self.goal.is_pose else np.zeros(0),
         }
@@ -234,9 +235,26 @@ class TrajOptProblem:
         """The clearance (m) the collision constraint asks of each waypoint (T,) and segment
         (T-1,): ``min_clearance_m``, or a fixed end's own clearance (``end_clearance_m``)
         at that end and on the segment from it, where that is lower."""
-        T, need = self.n_waypoints, self.config.min_clearance_m
-        waypoints, segments = np.full(T, need), np.full(max(T - 1, 0), need)
-        for w, s, c in ((0, 0, self.end_clearance_m[0]), (T - 1, T - 2, self.end_clearance_m[1])):
+        ends = (0, 1) if self.fixed_goal else (0,)
+        return self._lowered_at_ends(self.config.min_clearance_m, ends)
+
+    def safety_margins(self) -> tuple[Array, Array]:
+        """The hinge's margin (m) at each waypoint (T,) and segment (T-1,): ``safety_margin_m``,
+        but at a pose goal's last waypoint and on the segment to it no more than the seed's
+        end has (``end_clearance_m[1]``, an IK solution of the goal). A pre-grasp pose 1-2 cm
+        from a cabinet wall otherwise set the hinge against the goal: the end stopped 1-2
+        mm short of the pose at every penalty ("infeasible", 40-80 ms, on 8 of 100 kitchen
+        task cases), then a retry towards the seed's end configuration."""
+        ends = () if self.fixed_goal else (1,)
+        return self._lowered_at_ends(self.config.safety_margin_m, ends)
+
+    def _lowered_at_ends(self, value: float, ends: tuple[int, ...]) -> tuple[Array, Array]:
+        """(T,) and (T-1,) arrays of ``value`` m, lowered to ``end_clearance_m`` at each end
+        in ``ends`` (0: the first waypoint and segment, 1: the last) where that is less."""
+        T = self.n_waypoints
+        waypoints, segments = np.full(T, value), np.full(max(T - 1, 0), value)
+        for end in ends:
+            c, w, s = self.end_clearance_m[end], (0, T - 1)[end], (0, T - 2)[end]
             waypoints[w] = min(waypoints[w], c)
             if T > 1:
                 segments[s] = min(segments[s], c)
@@ -336,18 +354,16 @@ def build_trajopt(world: World, q_start: Array, goal: Goal, seed: Array | None =
         world=world, distances=distances, q_start=q_start, goal=goal, seed=S, config=config,
         weights=weights, lower=robot.lower.copy(), upper=robot.upper.copy(), dt=dt,
         velocity_limit=vlim, acceleration_limit=alim, torque_limit=tlim,
-        end_clearance_m=_end_clearance(distances, S, goal, config))
+        end_clearance_m=_end_clearance(distances, S, config))
 
 
-def _end_clearance(distances: TrajectoryDistances, S: Array, goal: Goal,
-                   config: TrajOptConfig) -> Array:
-    """(2,) m: the sphere model's clearance at S's first waypoint and at its last when the
-    goal fixes it (inf otherwise); beyond ``check_distance_m``, the terms' far value."""
-    ends = S[[0, -1]] if goal.q is not None else S[:1]
-    d_ends, _ = distances.waypoints(ends, config.check_distance_m, config.terms_per_waypoint)
-    out = np.full(2, np.inf)
-    out[:len(ends)] = d_ends.min(axis=1)
-    return out
+def _end_clearance(distances: TrajectoryDistances, S: Array, config: TrajOptConfig
+                   ) -> Array:
+    """(2,) m: the sphere model's clearance at S's first and last waypoints (beyond
+    ``check_distance_m``, the terms' far value)."""
+    d_ends, _ = distances.waypoints(S[[0, -1]], config.check_distance_m,
+                                    config.terms_per_waypoint)
+    return d_ends.min(axis=1)
 
 
 def _checked_seed(world: World, q_start: Array, goal: Goal, seed: Array | None,

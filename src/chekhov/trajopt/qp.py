@@ -157,7 +157,6 @@ class TrajOptQP:
     def _fill(self, ev: Evaluation, x_bar: Array, trust: float, mu: float
               ) -> tuple[Array, Array, Array, Array]:
         p = self.problem
-        cfg = p.config
         T, K = p.n_waypoints, p.dof
         vals = self._vals
         lo_, u = self._l, self._u
@@ -171,7 +170,7 @@ class TrajOptQP:
             lo[-K:] = hi[-K:] = Qb[-1]
         lo_[:self.n_x], u[:self.n_x] = lo, hi
         lo_[self._rows:], u[self._rows:] = 0.0, INF
-        d_safe = cfg.safety_margin_m
+        safe_w, safe_s = p.safety_margins()
         for name, b in self._blocks.items():
             w = b.width
             vb = vals[off0 + b.value_offset:off0 + b.value_offset + b.n * (w + 1)].reshape(
@@ -181,14 +180,14 @@ class TrajOptQP:
                 t, k = self._wp_t, self._wp_k
                 g = ev.grad_waypoint[t, k]
                 vb[:, :w] = g
-                lo_[rs] = d_safe - ev.dist_waypoint[t, k] + np.einsum("rk,rk->r", g, Qb[t])
+                lo_[rs] = safe_w[t] - ev.dist_waypoint[t, k] + np.einsum("rk,rk->r", g, Qb[t])
                 u[rs] = INF
             elif name == "segment":
                 t, k = self._seg_t, self._seg_k
                 g = ev.grad_segment[t, k]
                 vb[:, :w] = g
                 seg = np.concatenate([Qb[:-1], Qb[1:]], axis=1)
-                lo_[rs] = d_safe - ev.dist_segment[t, k] + np.einsum("rk,rk->r", g, seg[t])
+                lo_[rs] = safe_s[t] - ev.dist_segment[t, k] + np.einsum("rk,rk->r", g, seg[t])
                 u[rs] = INF
             else:
                 if name == "goal":
