@@ -163,7 +163,7 @@ def test_summary_json_keys_and_cli(tmp, db, capsys):
     printed = capsys.readouterr().out
     assert "TrajOpt" in printed and "median s" in printed
     got = json.loads(out.read_text())
-    assert got["time_limit_s"] == 1.0
+    assert got["time_limit_s"] == 1.0 and got["workers"] == 1 and got["executor"] == "local"
     assert set(got["scenes"][SCENE]) == {"TrajOpt", "RRTConnect"}
 
 

@@ -137,7 +137,11 @@ def _cmd_bench(args: argparse.Namespace) -> int:
                                    "cases_per_scene": config.n_cases,
                                    "case_families": list(config.families),
                                    "planners": list(config.planners),
-                                   "executor": config.executor})
+                                   "executor": config.executor,
+                                   # planners running at once: times on a machine with fewer
+                                   # cores than this share them
+                                   "workers": config.local_workers if config.executor == "local"
+                                   else config.workers})
         write_text(args.summary_json, json.dumps(doc, indent=1) + "\n")
         print(f"wrote {args.summary_json}", file=sys.stderr)
     if args.report:
