@@ -323,7 +323,8 @@ def test_a_fixed_start_closer_than_the_clearance_is_asked_only_its_own(pole):
     assert d[i] - 1e-4 <= first <= d[i] + 1e-9   # the start's clearance bounds its segment's
     assert pole.exact.path_valid(r.trajectory, substeps=100)
     pose = build_trajopt(pole, q0, Goal.pose(pole.robot.compute_ee_pose(q1)), line, cfg)
-    assert pose.required_clearance()[1][-1] == cfg.min_clearance_m   # its end is free to move
+    # a pose goal's end, free only within the goal's tolerances, is asked what its seed has
+    assert pose.required_clearance()[1][-1] == min(cfg.min_clearance_m, pose.end_clearance_m[1])
 
 
 def test_a_pose_goal_near_an_object_is_reached_not_pushed_off(world_of):

@@ -12,9 +12,8 @@ class TrajOptConfig:
 
     Collision (m): terms are gathered for pairs closer than ``check_distance_m``; each is a
     hinge penalty max(0, safety_margin_m - sd). The collision constraint counts as satisfied
-    when every term is at least ``min_clearance_m`` (at a fixed end closer than that, and on
-    the segment from it, at least the end's own clearance:
-    ``TrajOptProblem.required_clearance``).
+    when every term is at least ``min_clearance_m`` (at an end closer than that, and on the
+    segment from it, at least the end's own clearance: ``TrajOptProblem.required_clearance``).
 
     Attributes:
         n_waypoints: T of straight-line seeds.

@@ -75,12 +75,11 @@ class TrajOptProblem:
         velocity_limit: (K,) rad per step; acceleration_limit (K,) rad per step²;
             torque_limit (K,) N·m (inf where absent).
         end_clearance_m: (2,) m, the sphere model's clearance at the seed's first and last
-            waypoints. At a fixed end (the start; the last for a configuration goal) it is the
-            most the collision constraint can ask there (:meth:`required_clearance`: a swept
-            segment is no farther from anything than its ends, so a start 1 mm into the
-            margin made every run "infeasible": four penalty increases, 25-50 ms, for
-            nothing); at a pose goal's end, the most the hinge asks
-            (:meth:`safety_margins`).
+            waypoints: the most the collision constraint asks at either end
+            (:meth:`required_clearance`: a swept segment is no farther from anything than its
+            ends, so a start 1 mm into the margin made every run "infeasible": four penalty
+            increases, 25-50 ms, for nothing), and at a pose goal's end the most the hinge
+            asks (:meth:`safety_margins`).
     """
 
     world: World
@@ -233,10 +232,13 @@ class TrajOptProblem:
 
     def required_clearance(self) -> tuple[Array, Array]:
         """The clearance (m) the collision constraint asks of each waypoint (T,) and segment
-        (T-1,): ``min_clearance_m``, or a fixed end's own clearance (``end_clearance_m``)
-        at that end and on the segment from it, where that is lower."""
-        ends = (0, 1) if self.fixed_goal else (0,)
-        return self._lowered_at_ends(self.config.min_clearance_m, ends)
+        (T-1,): ``min_clearance_m``, or an end's own clearance (``end_clearance_m``) at that
+        end and on the segment from it, where that is lower: the start and a configuration
+        goal are fixed, and a pose goal's end can move only within the goal's tolerances
+        from the seed's (an IK solution of the pose; on the Panda's task cases one in the
+        spheres' margin, 1-5 cm in, made every straight-line run raise the penalty to its
+        limit and end "exact_clear")."""
+        return self._lowered_at_ends(self.config.min_clearance_m, (0, 1))
 
     def safety_margins(self) -> tuple[Array, Array]:
         """The hinge's margin (m) at each waypoint (T,) and segment (T-1,): ``safety_margin_m``,
