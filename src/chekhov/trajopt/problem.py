@@ -264,7 +264,7 @@ class TrajOptProblem:
 
     def constraint_report(self, ev: Evaluation) -> dict[str, float]:
         """Largest violation of each constraint, in its unit; collision measured against
-        :meth:`required_clearance` (``min_clearance_m`` but at a fixed end already closer)."""
+        :meth:`required_clearance` (``min_clearance_m`` but at an end already closer)."""
         need_w, need_s = self.required_clearance()
         short = max(float(np.max(need_w[:, None] - ev.dist_waypoint, initial=0.0)),
                     float(np.max(need_s[:, None] - ev.dist_segment, initial=0.0)))
