@@ -333,7 +333,7 @@ def test_a_pose_goal_near_an_object_is_reached_not_pushed_off(world_of):
     it no longer holds the end 1-2 mm short of the pose at every penalty; the last waypoint
     meets the pose (pinocchio's FK) and an answer the validation accepts is exactly free."""
     kitchen = world_of("kitchen")
-    cases = generate_cases(kitchen, 40, seed=0, family="tasks")
+    cases = generate_cases(kitchen, 80, seed=0, family="tasks")
     near = 0
     for i in range(len(cases)):
         goal = cases.goal(i)
@@ -355,7 +355,9 @@ def test_a_pose_goal_near_an_object_is_reached_not_pushed_off(world_of):
         assert rotation_angle(T_world_ee[:3, :3], goal.T_world_ee[:3, :3]) \
             <= goal.orientation_tolerance
         assert not r.success or kitchen.exact.path_valid(r.trajectory, substeps=100)
-    assert near >= 3, near   # measured: 3 of 40 (before, one of them ended 1 mm short)
+    # measured: 6-7 of 80 (of the first 40, 2-3 as the swept search's last digits change; before
+    # 7729b42 one of those ended 1 mm short)
+    assert near >= 4, near
 
 
 @settings(max_examples=60, deadline=None,

@@ -39,7 +39,12 @@ the next ones as many as the time per segment so far says fit, at most twice the
 DEADLINE_CHUNK_MAX = 2
 
 SWEPT_ITERATIONS = 30
-"""Golden-section steps of the swept spheres' closest point along a segment."""
+"""Golden-section steps, at most, of the swept spheres' closest point along a segment."""
+
+SWEPT_TOLERANCE_M = 1e-5
+"""m: the golden-section search stops once its bracket spans less than this much of the
+sphere's travel (sd is 1-Lipschitz, so the minimum found is then within this of the true
+one, less than the constraint tolerance, far less than any margin)."""
 
 _GOLDEN = 0.3819660112501051
 
@@ -135,13 +140,17 @@ def _sd_along(kind, R, p, size, c0, c1, alpha, x):  # pragma: no cover - compile
 def _swept_min(kind, R, p, size, c0, c1, iters):  # pragma: no cover - compiled
     """(min over α ∈ [0, 1] of sd(c0 + α (c1 - c0)), α*): golden-section search (sd is convex
     along a line for a convex obstacle), one new evaluation a step (the other interior point
-    is the last step's), ends included."""
+    is the last step's), ends included; at most ``iters`` steps, fewer once the bracket
+    spans less than :data:`SWEPT_TOLERANCE_M` of the travel |c1 - c0|."""
     x = np.empty(3)
     lo, hi = 0.0, 1.0
     m1, m2 = lo + _GOLDEN * (hi - lo), hi - _GOLDEN * (hi - lo)
     f1 = _sd_along(kind, R, p, size, c0, c1, m1, x)
     f2 = _sd_along(kind, R, p, size, c0, c1, m2, x)
+    travel = np.sqrt((c1[0] - c0[0]) ** 2 + (c1[1] - c0[1]) ** 2 + (c1[2] - c0[2]) ** 2)
     for _ in range(iters):
+        if (hi - lo) * travel < SWEPT_TOLERANCE_M:
+            break
         if f1 <= f2:   # the minimum is in [lo, m2]: m1 becomes its upper interior point
             hi, m2, f2 = m2, m1, f1
             m1 = lo + _GOLDEN * (hi - lo)
@@ -163,7 +172,9 @@ def _swept_min(kind, R, p, size, c0, c1, iters):  # pragma: no cover - compiled
 def _closest_in_group(kind, R, p, size, g, gstart, sr, cw0, cw1, swept, margin, iters
                       ):  # pragma: no cover - compiled
     """Closest sphere of group g to one obstacle, statically (cw0) or swept (cw0 → cw1):
-    (signed distance m, sphere, α*)."""
+    (signed distance m, sphere, α*). A swept sphere is searched only when its lower bound
+    (sd at mid-segment − radius − half its travel; sd is 1-Lipschitz) is below both the
+    margin and the closest found so far."""
     best, bs, balpha = np.inf, -1, 0.0
     x = np.empty(3)
     for s in range(gstart[g], gstart[g + 1]):
@@ -175,7 +186,8 @@ def _closest_in_group(kind, R, p, size, g, gstart, sr, cw0, cw1, swept, margin, 
             for a in range(3):
                 x[a] = 0.5 * (cw0[s, a] + cw1[s, a])
                 half += (cw1[s, a] - cw0[s, a]) ** 2
-            if signed_distance(kind, R, p, size, x) - sr[s] - 0.5 * np.sqrt(half) >= margin:
+            if signed_distance(kind, R, p, size, x) - sr[s] - 0.5 * np.sqrt(half) >= \
+                    min(margin, best):
                 continue
             f, alpha = _swept_min(kind, R, p, size, cw0[s], cw1[s], iters)
             d = f - sr[s]
