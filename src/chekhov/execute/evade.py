@@ -231,14 +231,20 @@ class Evader:
         self._cut = None
 
     def in_scene(self, q: Array, restore: Obstacles) -> bool:
-        """Whether configuration q (K,) rad is in collision with the static scene (the fast
-        checker, no dynamic obstacles; ``restore``'s put back after)."""
+        """Whether configuration q (K,) rad is in collision with the static scene: the fast
+        checker (no dynamic obstacles; ``restore``'s put back after) says so, and the exact
+        checker does not call q free (with whatever dynamic obstacles it holds, a free answer
+        is free of the static scene too). The fast checker's collisions can be false alarms
+        (it proves "free" only): a kicked arm beside a kitchen cabinet, free by the exact
+        checker, was taken as in it, and its way out searched for ~100 ms in one step while
+        the loop ran the arm into the cabinet."""
         fast = self.world.fast
         try:
             fast.set_obstacles({})
-            return not bool(fast.valid(q[None])[0])
+            alarm = not bool(fast.valid(q[None])[0])
         finally:
             fast.set_obstacles(restore)
+        return alarm and not self.world.exact.is_valid(q)
 
     def unstick(self, now: State, t0: float, restore: Obstacles) -> Motion | None:
         """Out of a collision with the static scene the arm is already in (a stop after a
@@ -269,6 +275,8 @@ class Evader:
             out = 0 if len(bad) == 0 else int(bad[-1]) + 1
             if out < len(ts) and ts[out] - t0 <= UNSTICK_S and (best is None or out < best[0]):
                 best = (out, move)
+                if out == 0:   # out at once: no later (farther) target can beat it
+                    break
         return None if best is None else best[1]
 
     def escapes(self, now: State, t0: float, restore: Obstacles,
