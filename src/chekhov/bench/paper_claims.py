@@ -16,8 +16,10 @@ The claims (Dai et al., Sections IV-A to IV-C):
   percentile runtime exceeds the reactive executive's planning budget
   (:class:`chekhov.execute.executor.ExecutorConfig`, 50 ms). The paper's own bar for "fast
   reaction" (a mean under 1 s) is shown beside it.
-* ``roadmap_wins``: Roadmap+TrajOpt has the lowest mean runtime of the seeded planners and a
-  failure rate of at most 2% (the paper's "success rate of above 98%").
+* ``roadmap_wins``: Roadmap+TrajOpt has a lower mean runtime than every sampling-seeded
+  planner (X+TrajOpt; the paper's variant of the roadmap planner, ``Roadmap+TrajOpt(paper)``,
+  is a roadmap seed too, not a rival) and a failure rate of at most 2% (the paper's "success
+  rate of above 98%").
 * ``optimised_shorter``: Roadmap+TrajOpt's returned paths are at least 10% shorter than their
   roadmap seeds (Section IV-C: "on average more than 10% shorter than their corresponding seed
   trajectories"), on the runs whose answer came from a roadmap seed optimised by TrajOpt
@@ -179,11 +181,12 @@ def check_sampling_too_slow(per: PerPlanner, _: SeedShortening | None = None) ->
 
 
 def check_roadmap_wins(per: PerPlanner, _: SeedShortening | None = None) -> Verdict:
-    """Roadmap+TrajOpt: the lowest mean runtime of the seeded planners, failure ≤ 2%."""
+    """Roadmap+TrajOpt: a lower mean runtime than every sampling-seeded planner, failure
+    ≤ 2%."""
     rm = per.get(ROADMAP)
-    others = [n for n in _seeded(per) if n != ROADMAP]
+    others = [n for n in sorted(per) if seed_planner_name(n) is not None]
     if rm is None or not others:
-        return Verdict(NOT_MEASURED, _missing(per, "Roadmap+TrajOpt and another seeded "
+        return Verdict(NOT_MEASURED, _missing(per, "Roadmap+TrajOpt and a sampling-seeded "
                                                     "planner"))
     fastest = all(rm.mean_runtime_s < per[n].mean_runtime_s for n in others)
     low = rm.failure_rate <= LOW_FAILURE
@@ -229,8 +232,9 @@ CLAIMS: tuple[Claim, ...] = (
     Claim("sampling_too_slow", "Sampling-based seeds are too slow for reaction (p95 > "
           f"{1000 * REACTION_BUDGET_S:.0f} ms, the executive's replanning budget)",
           check_sampling_too_slow),
-    Claim("roadmap_wins", "The roadmap seed wins on runtime (lowest mean of the seeded "
-          f"planners) with low failure (≤ {100 * LOW_FAILURE:.0f}%)", check_roadmap_wins),
+    Claim("roadmap_wins", "The roadmap seed wins on runtime (a lower mean than every "
+          f"sampling-seeded planner's) with low failure (≤ {100 * LOW_FAILURE:.0f}%)",
+          check_roadmap_wins),
     Claim("optimised_shorter", f"Optimised paths are ≥ {100 * SHORTER_BY:.0f}% shorter than "
           "their roadmap seeds", check_optimised_shorter),
 )
