@@ -124,6 +124,11 @@ def _seeded(per: PerPlanner) -> list[str]:
             if seed_planner_name(n) is not None or n.startswith(ROADMAP)]
 
 
+def _sampling_seeded(per: PerPlanner) -> list[str]:
+    """The planners in ``per`` whose seed is a sampling-based planner's (X+TrajOpt)."""
+    return [n for n in sorted(per) if seed_planner_name(n) is not None]
+
+
 def _combine(results: list[bool]) -> str:
     if not results:
         return NOT_MEASURED
@@ -170,7 +175,7 @@ def check_seed_runs_faster(per: PerPlanner, _: SeedShortening | None = None) -> 
 
 def check_sampling_too_slow(per: PerPlanner, _: SeedShortening | None = None) -> Verdict:
     """Every sampling-seeded X+TrajOpt's p95 runtime above the reaction budget."""
-    sampled = [n for n in sorted(per) if seed_planner_name(n) is not None]
+    sampled = _sampling_seeded(per)
     if not sampled:
         return Verdict(NOT_MEASURED, _missing(per, "a sampling-based seed + TrajOpt"))
     return Verdict(
@@ -184,7 +189,7 @@ def check_roadmap_wins(per: PerPlanner, _: SeedShortening | None = None) -> Verd
     """Roadmap+TrajOpt: a lower mean runtime than every sampling-seeded planner, failure
     ≤ 2%."""
     rm = per.get(ROADMAP)
-    others = [n for n in sorted(per) if seed_planner_name(n) is not None]
+    others = _sampling_seeded(per)
     if rm is None or not others:
         return Verdict(NOT_MEASURED, _missing(per, "Roadmap+TrajOpt and a sampling-seeded "
                                                     "planner"))
