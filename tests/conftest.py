@@ -1,7 +1,14 @@
 import numpy as np
 import pytest
+from hypothesis import settings
 
 from chekhov.world import World
+
+# Property tests draw the same examples on every run and every machine: a CI run can only fail
+# where a local run fails too (no example database, derandomised).  Tests still set their own
+# max_examples; the profile supplies what they do not.
+settings.register_profile("chekhov", derandomize=True, database=None, deadline=None)
+settings.load_profile("chekhov")
 
 
 @pytest.fixture(scope="session")
