@@ -421,14 +421,17 @@ class RoadmapTrajOpt(PlannerBase):
         return goal
 
     def _end_unclear(self, q_end: Array) -> bool:
-        """Whether the sphere model at q_end (K,) rad is closer than TrajOpt's
-        ``min_clearance_m`` to something (an obstacle, a fixed part, itself). The collision
+        """Whether TrajOpt's own terms at q_end (K,) rad (the sphere model; a self pair whose
+        tabled gap bound clears the margin is none) are closer than its ``min_clearance_m``
+        to something (an obstacle, a fixed part, itself). The collision
         terms then push the last waypoint off a pose goal that only q_end's neighbourhood
         reaches: on task cases that pose-goal TrajOpt ended "infeasible" in 29 of 33 such
         queries (Panda and Baxter shelves, kitchen), 20-70 ms each, before the retry towards
         q_end that succeeds."""
-        clearance = float(self.world.fast.min_distance(q_end[None])[0])
-        return clearance < self._trajopt.min_clearance_m
+        cfg = self._trajopt
+        d, _ = self._distances.waypoints(q_end[None], cfg.check_distance_m, 1,
+                                         tabled_clear_m=cfg.min_clearance_m)
+        return float(d.min()) < cfg.min_clearance_m
 
     def _trajopt_run(self, run: AnytimeRun, seed: Array, goal: Goal, stage: Stage,
                      stop: float, abandon_above_rad: float = math.inf

@@ -140,7 +140,8 @@ class TrajOptProblem:
         margin = cfg.check_distance_m
         t0 = time.perf_counter()
         dw, gw = self.distances.waypoints(Q, margin, cfg.terms_per_waypoint,
-                                          with_obstacles=not cfg.continuous)
+                                          with_obstacles=not cfg.continuous,
+                                          tabled_clear_m=cfg.min_clearance_m)
         if cfg.continuous and len(Q) > 1:
             ds, g0, g1 = self.distances.segments(Q, margin, cfg.terms_per_segment, deadline)
             gs = np.concatenate([g0, g1], axis=2)
@@ -364,7 +365,8 @@ def _end_clearance(distances: TrajectoryDistances, S: Array, config: TrajOptConf
     """(2,) m: the sphere model's clearance at S's first and last waypoints (beyond
     ``check_distance_m``, the terms' far value)."""
     d_ends, _ = distances.waypoints(S[[0, -1]], config.check_distance_m,
-                                    config.terms_per_waypoint)
+                                    config.terms_per_waypoint,
+                                    tabled_clear_m=config.min_clearance_m)
     return d_ends.min(axis=1)
 
 
