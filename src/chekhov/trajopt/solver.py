@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 from chekhov.collision.path_check import PathCertificate, PathDecision, exact_path_decision
 from chekhov.errors import DeadlineError
 from chekhov.paths import path_length
-from chekhov.trajopt.problem import Evaluation, TrajOptProblem
+from chekhov.trajopt.problem import Evaluation, TrajOptProblem, build_trajopt
 from chekhov.trajopt.qp import TrajOptQP, term_counts
 from chekhov.trajopt.result import TrajOptResult
 from chekhov.world import World
@@ -76,18 +76,67 @@ def solve_trajopt(problem: TrajOptProblem, deadline: float = math.inf, *,
                   abandon_above_rad: float = math.inf) -> TrajOptResult:
     """Optimise the problem's seed; validate the result as ``config.validate`` says.
 
-    A result that fails the validation gets status "collision" and ``success`` False. The
-    optimisation and validation end by ``config.time_limit_s`` after the call or by
-    ``deadline`` (a ``time.perf_counter()`` value, s: a planner's query deadline), whichever
-    comes first. ``abandon_above_rad``: an anytime caller's answer so far (joint-space
-    length, rad); once the trajectory is longer than that after
-    :data:`ABANDON_AFTER_STEPS` accepted steps, the run stops with status "abandoned" (not a
-    success, not validated).
+    A result that fails the validation is refined (``config.refine_rounds``: its colliding
+    segments split, the optimisation continued) while time is left, and otherwise gets status
+    "collision" and ``success`` False. The optimisation and validation end by
+    ``config.time_limit_s`` after the call or by ``deadline`` (a ``time.perf_counter()``
+    value, s: a planner's query deadline), whichever comes first. ``abandon_above_rad``: an
+    anytime caller's answer so far (joint-space length, rad); once the trajectory is longer
+    than that after :data:`ABANDON_AFTER_STEPS` accepted steps, the run stops with status
+    "abandoned" (not a success, not validated). ``result.info["refinements"]`` counts the
+    refinements; iterations and timings are summed over them.
     """
+    deadline = min(deadline, time.perf_counter() + problem.config.time_limit_s)
+    result = _solve_once(problem, deadline, abandon_above_rad)
+    for rounds in range(1, problem.config.refine_rounds + 1):
+        if result.status != "collision" or time.perf_counter() + FIRST_STEP_S > deadline:
+            break
+        seed = _split_colliding(problem, result.trajectory, deadline)
+        if seed is None:
+            break
+        refined = build_trajopt(problem.world, problem.q_start, problem.goal, seed,
+                                problem.config, problem.distances)
+        again = _solve_once(refined, deadline, abandon_above_rad)
+        result = _after_refinement(result, again, rounds)
+    return result
+
+
+def _split_colliding(problem: TrajOptProblem, Q: Array, deadline: float) -> Array | None:
+    """Q (T, K) rad with a midpoint inserted in each segment whose own exact decision (at
+    ``config.substeps``) fails; None when there is none or ``deadline`` passed first."""
+    world, substeps = problem.world, problem.config.substeps
+    bad = []
+    for i in range(len(Q) - 1):
+        valid = exact_path_decision(world.fast, world.exact, Q[i:i + 2], substeps,
+                                    deadline).valid
+        if valid is None:
+            return None
+        if not valid:
+            bad.append(i)
+    if not bad:
+        return None
+    mids = 0.5 * (Q[bad] + Q[np.asarray(bad) + 1])
+    return np.insert(Q, np.asarray(bad) + 1, mids, axis=0)
+
+
+def _after_refinement(before: TrajOptResult, after: TrajOptResult, rounds: int
+                      ) -> TrajOptResult:
+    """The refined run's result with the runs' iterations and timings summed, the first
+    run's seed, and ``info["refinements"]``."""
+    timing = {k: before.timing_s.get(k, 0.0) + after.timing_s.get(k, 0.0)
+              for k in before.timing_s.keys() | after.timing_s.keys()}
+    return replace(after, iterations=before.iterations + after.iterations,
+                   penalty_increases=before.penalty_increases + after.penalty_increases,
+                   timing_s=timing, seed=before.seed,
+                   info={**after.info, "refinements": rounds})
+
+
+def _solve_once(problem: TrajOptProblem, deadline: float, abandon_above_rad: float
+                ) -> TrajOptResult:
+    """One optimisation of the problem's seed until ``deadline``, validated."""
     cfg = problem.config
     t_start = time.perf_counter()
     cpu_start = time.process_time()
-    deadline = min(deadline, t_start + cfg.time_limit_s)
     timing = {"collision": 0.0, "linearise": 0.0, "qp": 0.0, "validate": 0.0}
     try:
         ev = problem.evaluate(problem.seed, timing, deadline)
