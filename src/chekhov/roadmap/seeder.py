@@ -5,12 +5,13 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from itertools import pairwise
 
 import numpy as np
 from numpy.typing import NDArray
 
+from chekhov.collision.exits import exact_exit
 from chekhov.roadmap.build import distal_values
 from chekhov.roadmap.config import SeederConfig
 from chekhov.roadmap.connect import Connection, Connector
@@ -37,6 +38,8 @@ converged at these errors (``ChainKinematics.solve``'s defaults), and the roadma
 pre-grasp nodes are such solutions of their poses."""
 GOAL_NODE_CANDIDATES = 8
 """Nodes nearest a pose goal (position, then rotation) looked at for goal nodes."""
+EXITS_KEPT = 16
+"""Ends whose exits (:meth:`RoadmapSeeder._way_out`) are remembered, at most."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -107,6 +110,7 @@ class RoadmapSeeder:
         self.connector = Connector(world, roadmap, self.validity, self.config, self.resolution,
                                    P, distal)
         warm_up()
+        self._exits: dict[tuple[bytes, int], Array] = {}
         self.tree_repair = TreeRepair(world, roadmap, self.validity, self._route_nodes,
                                       self.resolution, cfg.repair)
         self.goal_ik.warmup()
@@ -201,7 +205,7 @@ class RoadmapSeeder:
         an answer. ``timing_s`` is the whole query's, shared by all."""
         t0 = time.perf_counter()
         timing = {"ik": 0.0, "connect": 0.0, "search": 0.0, "validate": 0.0}
-        robot, fast = self.world.robot, self.world.fast
+        robot = self.world.robot
         q_start = robot.check_configuration(q_start, "start configuration")
         self.validity.refresh()
         checks0 = dict(self.validity.checks)
@@ -211,23 +215,30 @@ class RoadmapSeeder:
             return [SeedResult(False, status, None, np.empty(0, dtype=np.int64), None, timing,
                                dict(info))]
 
-        if not (robot.within_limits(q_start)[0] and fast.is_valid(q_start)):
-            return fail("invalid_start", reason="start outside the limits or in collision")
+        q_from, status, why = self._way_out(q_start, "start", deadline)
+        if q_from is None:
+            return fail(status, reason=why)
         t = time.perf_counter()
-        Q_goal, status, why = self._goal_set(q_start, goal, n_routes, deadline,
+        Q_goal, status, why = self._goal_set(q_from, goal, n_routes, deadline,
                                              goal_nodes_first)
         timing["ik"] = time.perf_counter() - t
         if status:
             return fail(status, reason=why)
+        if goal.q is not None:
+            q_to, status, why = self._way_out(Q_goal[0], "goal", deadline)
+            if q_to is None:
+                return fail(status, reason=why)
+            Q_goal = q_to[None]
         t = time.perf_counter()
-        starts, goals = self._connect_ends(q_start, Q_goal, n_routes, deadline)
+        starts, goals = self._connect_ends(q_from, Q_goal, n_routes, deadline)
         timing["connect"] = time.perf_counter() - t
         if time.perf_counter() >= deadline:
             return fail("timeout", reason="the time limit passed while connecting")
         if not starts or not goals:
             return fail("no_connection", side="start" if not starts else "goal")
-        found = [r for r in (self._route(q_start, Q_goal, starts, g, timing, deadline)
-                             for g in goals) if r is not None]
+        found = [_with_ends(r, q_start, goal.q) for r in
+                 (self._route(q_from, Q_goal, starts, g, timing, deadline) for g in goals)
+                 if r is not None]
         timing["total"] = time.perf_counter() - t0
         if time.perf_counter() >= deadline:
             return fail("timeout", reason="the time limit passed while routing")
@@ -255,9 +266,40 @@ class RoadmapSeeder:
             return Q_goal, "" if len(Q_goal) else "no_ik", why
         assert goal.q is not None
         q_goal = robot.check_configuration(goal.q, "goal configuration")
-        if not (robot.within_limits(q_goal)[0] and self.world.fast.is_valid(q_goal)):
-            return q_goal[None], "invalid_goal", "goal outside the limits or in collision"
+        if not robot.within_limits(q_goal)[0]:
+            return q_goal[None], "invalid_goal", "goal outside the limits"
         return q_goal[None], "", ""
+
+    def _way_out(self, q: Array, end: str, deadline: float) -> tuple[Array | None, str, str]:
+        """(q, or where the route leaves from instead: ``collision.exits.exact_exit`` when
+        the fast checker rejects q and the exact checker does not, "", ""), or (None,
+        failure status, reason): ``end`` ("start" / "goal") outside the limits or in
+        collision, or no exit found ("no_connection", "timeout")."""
+        w = self.world
+        q = w.robot.check_configuration(q, f"{end} configuration")
+        if not w.robot.within_limits(q)[0]:
+            return None, f"invalid_{end}", f"{end} outside the limits"
+        if w.fast.is_valid(q):
+            return q, "", ""
+        key = (q.tobytes(), w.fast.obstacles_version)   # asked again for more routes
+        if key not in self._exits:
+            if not w.exact.is_valid(q):
+                return None, f"invalid_{end}", f"{end} in collision"
+            out = exact_exit(w.fast, w.exact, q, w.robot.lower, w.robot.upper, deadline)
+            if out is None:
+                return self._no_exit(end, deadline)
+            if len(self._exits) >= EXITS_KEPT:
+                self._exits.clear()
+            self._exits[key] = out
+        return self._exits[key], "", ""
+
+    @staticmethod
+    def _no_exit(end: str, deadline: float) -> tuple[None, str, str]:
+        """(None, "timeout" when ``deadline`` passed else "no_connection", why)."""
+        if time.perf_counter() >= deadline:
+            return None, "timeout", f"the time limit passed looking for a way out of the {end}"
+        return None, "no_connection", (f"the {end} is exactly free, but the fast checker "
+                                       f"rejects it and no exactly free way out was found")
 
     def _connect_ends(self, q_start: Array, Q_goal: Array, n_routes: int, deadline: float
                       ) -> tuple[list[Connection], list[list[tuple[int, Connection]]]]:
@@ -298,8 +340,21 @@ class RoadmapSeeder:
         q_start (K,) → a row of Q_goal (n, K) by a bidirectional tree that connects into the
         roadmap, searching until ``deadline`` (``time.perf_counter()`` value, s)."""
         self.validity.refresh()
-        return self.tree_repair.search(np.asarray(q_start, dtype=float),
-                                       np.atleast_2d(np.asarray(Q_goal, dtype=float)), deadline)
+        t0 = time.perf_counter()
+        q_from, status, _ = self._way_out(np.asarray(q_start, dtype=float), "start", deadline)
+        outs = [self._way_out(q, "goal", deadline) for q in np.atleast_2d(Q_goal)]
+        exits = [(q, out) for q, (out, _, _) in zip(np.atleast_2d(Q_goal), outs, strict=True)
+                 if out is not None]
+        if q_from is None or not exits:
+            return RepairResult(None, "timeout" if status == "timeout" else "exhausted", None,
+                                time.perf_counter() - t0, {"tree_nodes": 0})
+        r = self.tree_repair.search(q_from, np.array([out for _, out in exits]), deadline)
+        if r.path is None:
+            return r
+        q_goal = next(q for q, out in exits if np.array_equal(out, r.path[-1]))
+        path, _, _, _ = _with_ends((r.path, np.empty(0, dtype=np.int64), q_goal, {}),
+                                   q_start, q_goal)
+        return replace(r, path=path, q_goal=q_goal, time_s=time.perf_counter() - t0)
 
     def _route_nodes(self, s: int, g: int, deadline: float) -> IntArray | None:
         found = self._roadmap_path(s, g, {"search": 0.0, "validate": 0.0}, deadline)
@@ -377,3 +432,19 @@ class RoadmapSeeder:
             if val.path_valid(nodes, path_edges(rm.indptr, rm.indices, rm.edge_id, nodes)):
                 return nodes
         return None
+
+
+_Route = tuple[Array, IntArray, Array, dict[str, object]]
+
+
+def _with_ends(route: _Route, q_start: Array, q_goal: Array | None) -> _Route:
+    """A route between the ends' exits (``RoadmapSeeder._way_out``) with the ends themselves
+    added where they differ: q_start (K,) before, the goal configuration ``q_goal`` after."""
+    path, nodes, q_end, info = route
+    if not np.array_equal(path[0], q_start):
+        path = np.vstack([q_start, path])
+        info = {**info, "start_exit": True}
+    if q_goal is not None and not np.array_equal(path[-1], q_goal):
+        path, q_end = np.vstack([path, q_goal]), np.asarray(q_goal, dtype=float)
+        info = {**info, "goal_exit": True}
+    return path, nodes, q_end, info
