@@ -17,6 +17,8 @@ import yaml
 
 from chekhov import (
     Goal,
+    OmplPlanner,
+    PlanStatus,
     RoadmapConfig,
     RoadmapTrajOpt,
     Robot,
@@ -264,7 +266,8 @@ def test_ends_the_fast_checker_rejects_but_coal_accepts_are_planned(ur5_world):
     leaves through an exit (``collision.exits.exact_exit``: fast-free, within the limits,
     its straight motion exactly free — checked here by coal at 400 substeps) and the answer
     ends exactly at the goal, exactly free at 300 substeps. (Where no exit is found the
-    seeder says "no_connection", and the planner's repair and straight-line fallback run.)"""
+    seeder says "no_connection", and the planner's repair and straight-line fallback run.)
+    OMPL's RRTConnect, whose validity test is the fast checker, plans between the exits too."""
     world, robot = ur5_world, ur5_world.robot
     Q = robot.sample_uniform(np.random.default_rng(5), 2000)
     fast_ok, exact_ok = world.fast.valid(Q), world.exact.valid(Q)
@@ -284,9 +287,20 @@ def test_ends_the_fast_checker_rejects_but_coal_accepts_are_planned(ur5_world):
                           free)
     planner = RoadmapTrajOpt(world, build_roadmap(world, RoadmapConfig(n_nodes=200,
                                                                        n_region_nodes=0)))
+    rrt = OmplPlanner(world, "RRTConnect", simplify=True)   # its validity: the fast checker
+    rrt_solved = 0
     for q0, q1 in [(free, alarmed[0]), (free, alarmed[1]), (alarmed[2], free),
                    (alarmed[3], alarmed[0])]:
         r = planner.plan(q0, Goal.configuration(q1), 2.0)
         assert r.success, (r.status, [(s.stage, s.status) for s in r.stages])
         assert np.array_equal(r.path[0], q0) and np.array_equal(r.path[-1], q1)
         assert world.exact.path_valid(r.path, substeps=300)
+        # OMPL's sampler is its own (unseeded) and its motions are checked at 0.02 rad
+        # steps, so a rare answer fails the certification ("collision"): no refusal, though
+        r = rrt.plan(q0, Goal.configuration(q1), 2.0)
+        assert r.status in (PlanStatus.SOLVED, PlanStatus.COLLISION), r.status
+        if r.success:
+            rrt_solved += 1
+            assert np.array_equal(r.path[0], q0) and np.array_equal(r.path[-1], q1)
+            assert world.exact.path_valid(r.path, substeps=300)
+    assert rrt_solved >= 2

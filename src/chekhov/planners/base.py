@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 if TYPE_CHECKING:
     from chekhov.world import World
 
+from chekhov.collision.exits import exact_exit
 from chekhov.errors import TrajectoryError
 from chekhov.paths import path_length, resample_path
 from chekhov.planners.certify import certify
@@ -72,6 +73,10 @@ class PlannerBase(ABC):
     the certified path is the answer without a trajectory and ``info["timing_error"]`` says
     why. None: never timed."""
 
+    fast_free_ends: bool = False
+    """Whether :meth:`_plan` needs ends the fast checker accepts (a sampling planner whose
+    validity test it is): :meth:`plan` then plans between exits (:meth:`_plan_between_exits`)."""
+
     def plan(self, q_start: Array, goal: Goal, time_limit_s: float = 10.0, *,
              on_solution: Callable[[Solution], None] | None = None) -> PlanResult:
         """Plan from q_start (K,) rad to the goal within time_limit_s (s; inf for none).
@@ -84,6 +89,8 @@ class PlannerBase(ABC):
         if bad_end is not None:
             result = PlanResult(False, None, bad_end, 0.0,
                                 info={"error": f"{bad_end.value[8:]} configuration in collision"})
+        elif self.fast_free_ends:
+            result = self._plan_between_exits(query)
         else:
             result = self._plan(query)
         result = certify(self.world, query, result)
@@ -114,6 +121,33 @@ class PlannerBase(ABC):
         return replace(result, trajectory=timed.trajectory, info={
             **result.info, "timing_method": timed.method,
             "time_parameterize_s": time.perf_counter() - t})   # after time_s: not in timing_s
+
+    def _plan_between_exits(self, query: PlanQuery) -> PlanResult:
+        """:meth:`_plan` for a planner that needs ends the fast checker accepts
+        (``fast_free_ends``): an end it rejects (exactly free: checked before) is replaced by
+        its exit (:func:`~chekhov.collision.exits.exact_exit`, a nearby fast-free
+        configuration joined to it by an exactly free motion), and the answer gets the end
+        back; "no_connection" when an end has no exit."""
+        w = self.world
+        ends = [query.q_start] + ([] if query.goal.q is None else [query.goal.q])
+        if w.fast.valid(np.array(ends)).all():
+            return self._plan(query)
+        exits = [exact_exit(w.fast, w.exact, q, w.robot.lower, w.robot.upper, query.deadline)
+                 for q in ends]
+        found = [e for e in exits if e is not None]
+        if len(found) < len(ends):
+            status = PlanStatus.TIMEOUT if query.expired() else PlanStatus.NO_CONNECTION
+            return PlanResult(False, None, status, time.perf_counter() - query.t0, info={
+                "error": "an end the fast checker rejects (the exact one accepts it) has no "
+                         "exactly free way out"})
+        goal = query.goal if len(found) == 1 else Goal.configuration(found[1])
+        result = self._plan(replace(query, q_start=found[0], goal=goal))
+        if result.path is None:
+            return result
+        path = np.vstack([query.q_start, result.path, *ends[1:]])
+        keep = np.ones(len(path), dtype=bool)    # no repeated configuration where none exited
+        keep[1:] = np.abs(np.diff(path, axis=0)).max(axis=1) > 0.0
+        return replace(result, path=path[keep], info={**result.info, "exits": True})
 
     def warmup(self, *, seed: int = 0, time_limit_s: float = 1.0) -> float:
         """Do once what a first query would (compile or load the numba kernels, fill caches):

@@ -84,8 +84,11 @@ class LazyPRM(PlannerBase):
     """LazyPRM planner (see the module docstring) for one world.
 
     ``node_valid(Q (N, K)) -> bool (N,)`` and ``edge_valid(Q0, Q1, resolution) -> bool (N,)``
-    (end points excluded) default to the world's fast checker; tests inject their own.
+    (end points excluded) default to the world's fast checker; tests inject their own. An end
+    that only the exact checker accepts is planned to through its exit (``fast_free_ends``).
     """
+
+    fast_free_ends = True
 
     def __init__(self, world: World, config: LazyPRMConfig | None = None, seed: int | None = None,
                  node_valid: NodeValid | None = None, edge_valid: EdgeValid | None = None

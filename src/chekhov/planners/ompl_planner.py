@@ -82,7 +82,12 @@ class OmplPlanner(PlannerBase):
         simplify_time_s: s, most time spent simplifying.
         n_ik: IK solutions of the goal pose used as goal states.
         seed: seeds the IK restarts (OMPL's own sampler is seeded by OMPL).
+
+    Its state validity is the fast checker's: an end that only the exact checker accepts is
+    planned to through its exit (``fast_free_ends``).
     """
+
+    fast_free_ends = True
 
     def __init__(self, world: World, planner: str = "RRTConnect", *, resolution: float = 0.02,
                  simplify: bool = False, simplify_time_s: float = 1.0, n_ik: int = 4,
