@@ -1,7 +1,9 @@
 """Any arm from its URDF: Robot.from_urdf agrees with the built-in description, resolves meshes
 through package_dirs, keys caches on its content (locked joints included), refuses groups that
 are not chains of 1-DOF joints, plans continuous joints as bounded revolute ones, leaves
-adjacent links out of self-collision; the numbered example plans."""
+adjacent links out of self-collision, loads joints and links that share a name; the numbered
+example plans; arms written elsewhere (a UR5, an SO-100, a Z1) plan: TrajOpt past overlapping
+wrist spheres, ends the fast checker rejects but coal accepts."""
 
 import itertools
 import re
@@ -304,3 +306,39 @@ def test_ends_the_fast_checker_rejects_but_coal_accepts_are_planned(ur5_world):
             assert np.array_equal(r.path[0], q0) and np.array_equal(r.path[-1], q1)
             assert world.exact.path_valid(r.path, substeps=300)
     assert rrt_solved >= 2
+
+
+def test_a_joint_and_a_link_of_one_name_load_and_the_link_is_the_frame():
+    """Two arms nobody here wrote: the SO-100's joint "gripper" moves its link "gripper"
+    (pinocchio refused to lock that joint: "several frames match"), and Unitree's Z1 has a
+    fixed joint and a link both named "gripperStator" (the end-effector frame lookup
+    refused). Both load; the end-effector pose is the link's, as pinocchio's own full model
+    places its BODY frame; a straight-line plan of the Z1 is certified."""
+    arms = [
+        (SHARE / "robots/so_arm_description/urdf/so100.urdf", None,
+         ["shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll"],
+         "gripper"),
+        (SHARE / "robots/z1_description/urdf/z1.urdf",
+         SHARE / "robots/z1_description/srdf/z1.srdf", [f"joint{i}" for i in range(1, 7)],
+         "gripperStator"),
+    ]
+    for urdf, srdf, joints, ee in arms:
+        robot = Robot.from_urdf(urdf, joints=joints, ee_frame=ee, srdf=srdf,
+                                package_dirs=[SHARE.parent])
+        full = pin.buildModelFromUrdf(str(urdf))
+        data = full.createData()
+        body = next(i for i, f in enumerate(full.frames)
+                    if f.name == ee and f.type == pin.FrameType.BODY)
+        for q in robot.sample_uniform(np.random.default_rng(3), 5):
+            q_full = pin.neutral(full)
+            for name, v in zip(joints, q, strict=True):
+                q_full[full.joints[full.getJointId(name)].idx_q] = v
+            pin.framesForwardKinematics(full, data, q_full)
+            np.testing.assert_allclose(robot.compute_ee_pose(q),
+                                       robot.T_world_base @ data.oMf[body].homogeneous,
+                                       atol=1e-9)
+    world = World(load_scene("tabletop_pole"), robot)   # the Z1, at the scene's base pose
+    Q = robot.sample_uniform(np.random.default_rng(4), 60)
+    Q = Q[world.fast.valid(Q)]
+    r = TrajOptPlanner(world).plan(Q[0], Goal.configuration(Q[1]), 2.0)
+    assert r.success and world.exact.path_valid(r.path, substeps=200)

@@ -52,6 +52,26 @@ def bounded_continuous(root: ET.Element) -> list[str] | None:
     return unlimited
 
 
+def rename_shadowing_joints(root: ET.Element, keep: set[str]) -> bool:
+    """Rename, in place, each joint of the URDF ``root`` that has a link's name and is not in
+    ``keep`` (the joints a description names), to ``<name>__joint``; True when one was.
+    pinocchio refuses to lock such a joint (its frame and the link's share the name: the SO-100
+    arm's "gripper"); a joint outside the group is locked, never looked up by name again."""
+    links = {link.get("name") for link in root.findall("link")}
+    taken = links | {j.get("name") for j in root.findall("joint")}
+    renamed = False
+    for joint in root.findall("joint"):
+        name = joint.get("name")
+        if name in links and name not in keep:
+            new = f"{name}__joint"
+            while new in taken:
+                new += "_"
+            joint.set("name", new)
+            taken.add(new)
+            renamed = True
+    return renamed
+
+
 def _float_or_none(text: str | None) -> float | None:
     try:
         x = float(text) if text is not None else None

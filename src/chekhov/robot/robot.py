@@ -13,7 +13,12 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from chekhov.errors import RobotError
-from chekhov.robot._urdf import adjacent_links, bounded_continuous, read_urdf
+from chekhov.robot._urdf import (
+    adjacent_links,
+    bounded_continuous,
+    read_urdf,
+    rename_shadowing_joints,
+)
 from chekhov.robot.description import RobotDescription, SphereSettings, example_robot_data_dir
 from chekhov.transforms import make_transform, rpy_to_matrix
 
@@ -60,8 +65,10 @@ class Robot:
         self._package_dirs = [*description.package_dirs, *_default_package_dirs()]
         urdf_root = read_urdf(urdf, description.name)
         unlimited = bounded_continuous(urdf_root)
-        self._urdf_text = ET.tostring(urdf_root, encoding="unicode") if unlimited is not None \
-            else None
+        named = {*description.group_joints, *dict(description.fixed_joints)}
+        renamed = rename_shadowing_joints(urdf_root, named)
+        self._urdf_text = ET.tostring(urdf_root, encoding="unicode") \
+            if unlimited is not None or renamed else None
         self._adjacent = adjacent_links(urdf_root)
         try:
             full = self._build_model()
@@ -72,14 +79,18 @@ class Robot:
         except (RuntimeError, ValueError) as e:
             raise RobotError(f"robot '{description.name}': cannot load {urdf}: {e}") from e
         self._lock, self._q_ref = _locking(full, description, urdf)
-        model, col = pin.buildReducedModel(full, col, self._lock, self._q_ref)
+        try:
+            model, col = pin.buildReducedModel(full, col, self._lock, self._q_ref)
+        except ValueError as e:   # e.g. a named joint that shares its link's name
+            raise RobotError(f"robot '{description.name}': cannot lock the joints outside "
+                             f"the group in {urdf}: {e}") from e
         self._full = full
         _move_base(model, [col], pin.SE3(self.T_world_base))
         _check_group(model, description, urdf)
         self.model = model
         self.data = model.createData()
         self.collision_model = col
-        self.ee_frame_id = model.getFrameId(description.ee_frame)
+        self.ee_frame_id = frame_named(model, description.ee_frame)
         self.lower = model.lowerPositionLimit.copy()
         self.upper = model.upperPositionLimit.copy()
         self.velocity_limit = model.velocityLimit.copy()
@@ -269,7 +280,7 @@ class Robot:
         if isinstance(frame, str):
             if not self.model.existFrame(frame):
                 raise RobotError(f"robot '{self.name}': no frame '{frame}'")
-            return int(self.model.getFrameId(frame))
+            return frame_named(self.model, frame)
         return int(frame)
 
     @cached_property
@@ -367,6 +378,18 @@ def _check_group(model: pin.Model, description: RobotDescription, urdf: Path) ->
     if not model.existFrame(description.ee_frame):
         raise RobotError(f"robot '{description.name}': no end-effector frame "
                          f"'{description.ee_frame}' in {urdf}")
+
+
+def frame_named(model: pin.Model, name: str) -> int:
+    """The id of ``model``'s frame ``name``. A URDF fixed joint may share its child link's
+    name (Unitree's Z1: "gripperStator"), and pinocchio's lookup by name then refuses; both
+    frames sit at the link's origin, so the link's (BODY) frame is taken."""
+    ids = [i for i, f in enumerate(model.frames) if f.name == name]
+    if len(ids) > 1:
+        ids = [i for i in ids if model.frames[i].type == pin.FrameType.BODY] or ids[:1]
+    if not ids:
+        raise RobotError(f"no frame '{name}' in the model")
+    return ids[0]
 
 
 def _move_base(model: pin.Model, geometry_models: list[pin.GeometryModel], T: pin.SE3) -> None:
