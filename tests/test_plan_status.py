@@ -218,3 +218,33 @@ def test_no_offer_is_certified_in_the_final_checks_reserve(world, roadmap):
     on_time = AnytimeRun(world, PlanQuery(q0, Goal.configuration(qg), 10.0,
                                           time.perf_counter()))
     assert on_time.offer(r.path, Stage.SHORTCUT) and on_time.best is not None
+
+
+def test_an_improvement_not_certified_in_its_window_leaves_the_answer(world, roadmap):
+    """Once there is an answer, an improvement must be certified by the planner's bound
+    (``certify_improvements_by``): a shorter path offered after it — heard (``on_solution``)
+    or waiting as a candidate — is dropped as a timeout, and the first answer stands; with
+    the bound ahead the same path becomes the answer."""
+    import time
+
+    from chekhov.planners.anytime import AnytimeRun
+    from chekhov.planners.query import PlanQuery
+
+    cases = generate_cases(world, 10, seed=5)
+    q0, qg = cases.q_start[0], cases.q_goal[0]
+    r = RoadmapTrajOpt(world, roadmap).plan(q0, Goal.configuration(qg), 2.0)
+    assert r.success
+    detour = np.vstack([r.path[:2], r.path[:1], r.path])   # the same motions, and more
+    heard: list[object] = []
+    for listener in (None, heard.append):
+        for bound_s, answer in ((-1.0, detour), (10.0, r.path)):
+            run = AnytimeRun(world, PlanQuery(q0, Goal.configuration(qg), 10.0,
+                                              time.perf_counter(), on_solution=listener))
+            assert run.offer(detour, Stage.SHORTCUT)            # the answer: certified at once
+            run.certify_improvements_by(time.perf_counter() + bound_s)
+            run.offer(r.path, Stage.ROUTES)
+            res = run.result(PlanStatus.SOLVED)
+            assert res.success
+            np.testing.assert_array_equal(res.path, answer)
+            if bound_s < 0:
+                assert "routes: timeout" in str(res.info["rejected_offers"])

@@ -16,7 +16,9 @@ waits as the candidate instead, and the candidates still standing at the end are
 shortest first until one passes: an intermediate path that a later stage beats is checked only
 when every shorter one fails (the exact check is the largest cost of an improvement; measured:
 29% of Roadmap + TrajOpt's time on the shelf), and a shorter candidate that fails does not
-cost the answer the longer one it displaced.
+cost the answer the longer one it displaced. A planner may bound the certification of
+improvements (:meth:`AnytimeRun.certify_improvements_by`): once there is an answer, an offer
+that cannot be decided by then is dropped.
 """
 
 from __future__ import annotations
@@ -75,6 +77,19 @@ class AnytimeRun:
         # the query the offers are certified for (module docstring)
         self._offer_query = replace(query, time_limit_s=query.time_limit_s
                                     - FINAL_CHECK_RESERVE_S)
+        self._improvement_query = self._offer_query
+
+    def certify_improvements_by(self, deadline: float) -> None:
+        """Once there is an answer, certify offers by ``deadline`` (``time.perf_counter()``
+        value, s; never later than the offers' own): an improvement whose check takes longer
+        is dropped, and the answer stands. (An xArm7's shortcut candidate passing near
+        contact along half its length took coal 2 s to decide — the whole time limit.)"""
+        limit = min(deadline, self._offer_query.deadline) - self.query.t0
+        self._improvement_query = replace(self._offer_query, time_limit_s=limit)
+
+    def _check_query(self) -> PlanQuery:
+        """The query an offer is certified for now (:meth:`certify_improvements_by`)."""
+        return self._improvement_query if self.solutions else self._offer_query
 
     @property
     def best(self) -> Solution | None:
@@ -126,9 +141,10 @@ class AnytimeRun:
         """Certify ``path`` by :data:`FINAL_CHECK_RESERVE_S` before the deadline and make it
         the answer when it passes."""
         t = time.perf_counter()
-        why, certificate = check_path(self.world, self._offer_query, path, certificate)
+        query = self._check_query()
+        why, certificate = check_path(self.world, query, path, certificate)
         self.timing["offers"] = self.timing.get("offers", 0.0) + time.perf_counter() - t
-        if why is None and self._offer_query.expired():   # its last step ran past the time
+        if why is None and query.expired():   # its last step ran past the time
             why = (PlanStatus.TIMEOUT, "certified after the offers' deadline")
         if why is not None:
             self.rejected.append((stage, why[0], why[1]))
@@ -149,8 +165,10 @@ class AnytimeRun:
         first, shortest first, until one passes; none once the offers' deadline has passed)."""
         waiting, self._candidates = sorted(self._candidates, key=lambda c: c.length), []
         for c in waiting:
-            if self._offer_query.expired():   # a certification would fail ("timeout")
-                break
+            if self._check_query().expired():   # a certification would fail ("timeout")
+                self.rejected.append((c.stage, PlanStatus.TIMEOUT,
+                                      "not certified: its deadline had passed"))
+                continue
             if self._certify(c.path, c.stage, c.seed, None, c.info, c.length):
                 break
         info = {**(info or {}), **self.best_info}

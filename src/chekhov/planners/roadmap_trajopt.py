@@ -82,7 +82,9 @@ class RoadmapTrajOptConfig:
             16 random pairs, the best free one spliced in; 0: none) before TrajOpt.
         improve_time_s: s after the first certified answer by which the improvements (more
             routes, partial shortcuts, straight-line TrajOpt, TrajOpt from the seed) end:
-            each is given what is left of it (and never more than the time limit).
+            each is given what is left of it (and never more than the time limit). An
+            improvement's certification must end ``improve_time_s`` after that, else it is
+            dropped and the answer so far stands.
         min_length_gain: TrajOpt from the seed towards a configuration (the goal's, or the
             seed's own end) is skipped when the seed is at most this fraction longer than the
             straight line to it: no path there is shorter than the line, so no more could be
@@ -277,6 +279,7 @@ class RoadmapTrajOpt(PlannerBase):
             - run.timing.get("route_check", 0.0)
         if run.best is not None:
             stop = min(stop, time.perf_counter() + cfg.improve_time_s)
+            run.certify_improvements_by(stop + cfg.improve_time_s)
         # each stage starts only before the stop (a stage looks at it between its steps, but
         # its first step, e.g. the goal's IK solutions, takes ~0.7 ms)
         if (seed is not None and seed_from is Stage.ROADMAP_SEED and cfg.goal_routes > 1
