@@ -10,6 +10,7 @@ import re
 import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -306,6 +307,11 @@ def test_ends_the_fast_checker_rejects_but_coal_accepts_are_planned(ur5_world):
             assert np.array_equal(r.path[0], q0) and np.array_equal(r.path[-1], q1)
             assert world.exact.path_valid(r.path, substeps=300)
     assert rrt_solved >= 2
+    # the repair tree (used when obstacles cut the roadmap) leaves through the exits too
+    r = planner.seeder.repair(alarmed[0], np.array([alarmed[1]]), time.perf_counter() + 1.0)
+    assert r.path is not None, r.status
+    assert np.array_equal(r.path[0], alarmed[0]) and np.array_equal(r.path[-1], alarmed[1])
+    assert world.exact.path_valid(r.path, substeps=300)
 
 
 def test_a_joint_and_a_link_of_one_name_load_and_the_link_is_the_frame():

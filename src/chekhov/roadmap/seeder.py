@@ -351,7 +351,8 @@ class RoadmapSeeder:
         r = self.tree_repair.search(q_from, np.array([out for _, out in exits]), deadline)
         if r.path is None:
             return r
-        q_goal = next(q for q, out in exits if np.array_equal(out, r.path[-1]))
+        ends = np.array([out for _, out in exits])   # the tree ends at one of them
+        q_goal = exits[int(np.argmin(np.linalg.norm(ends - r.path[-1], axis=1)))][0]
         path, _, _, _ = _with_ends((r.path, np.empty(0, dtype=np.int64), q_goal, {}),
                                    q_start, q_goal)
         return replace(r, path=path, q_goal=q_goal, time_s=time.perf_counter() - t0)
