@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 from chekhov.collision.path_check import PathCertificate, PathDecision, exact_path_decision
 from chekhov.errors import DeadlineError
 from chekhov.paths import path_length
-from chekhov.trajopt.problem import Evaluation, TrajOptProblem, build_trajopt
+from chekhov.trajopt.problem import Evaluation, TrajOptError, TrajOptProblem, build_trajopt
 from chekhov.trajopt.qp import TrajOptQP, term_counts
 from chekhov.trajopt.result import TrajOptResult
 from chekhov.world import World
@@ -94,8 +94,11 @@ def solve_trajopt(problem: TrajOptProblem, deadline: float = math.inf, *,
         seed = _split_colliding(problem, result.trajectory, deadline)
         if seed is None:
             break
-        refined = build_trajopt(problem.world, problem.q_start, problem.goal, seed,
-                                problem.config, problem.distances)
+        try:
+            refined = build_trajopt(problem.world, problem.q_start, problem.goal, seed,
+                                    problem.config, problem.distances)
+        except TrajOptError:   # the first problem's checks passed: not expected
+            break
         again = _solve_once(refined, deadline, abandon_above_rad)
         result = _after_refinement(result, again, rounds)
     return result
