@@ -224,11 +224,6 @@ class RoadmapSeeder:
         timing["ik"] = time.perf_counter() - t
         if status:
             return fail(status, reason=why)
-        if goal.q is not None:
-            q_to, status, why = self._way_out(Q_goal[0], "goal", deadline)
-            if q_to is None:
-                return fail(status, reason=why)
-            Q_goal = q_to[None]
         t = time.perf_counter()
         starts, goals = self._connect_ends(q_from, Q_goal, n_routes, deadline)
         timing["connect"] = time.perf_counter() - t
@@ -251,8 +246,8 @@ class RoadmapSeeder:
     def _goal_set(self, q_start: Array, goal: Goal, n_routes: int, deadline: float,
                   nodes_first: bool = False) -> tuple[Array, str, str]:
         """(goal configurations (n, K) nearest the start first — with ``nodes_first``, the
-        goal's roadmap nodes before the others —, failure status, reason)."""
-        robot = self.world.robot
+        goal's roadmap nodes before the others; a configuration goal's exit when the fast
+        checker rejects it (:meth:`_way_out`) —, failure status, reason)."""
         if goal.is_pose:
             assert goal.T_world_ee is not None
             n = max(self.config.n_goal_ik, n_routes)
@@ -265,10 +260,8 @@ class RoadmapSeeder:
                 Q_goal = np.vstack([nodes, Q_goal[apart]])[:max(n, len(nodes))]
             return Q_goal, "" if len(Q_goal) else "no_ik", why
         assert goal.q is not None
-        q_goal = robot.check_configuration(goal.q, "goal configuration")
-        if not robot.within_limits(q_goal)[0]:
-            return q_goal[None], "invalid_goal", "goal outside the limits"
-        return q_goal[None], "", ""
+        q_to, status, why = self._way_out(goal.q, "goal", deadline)
+        return (np.empty((0, len(goal.q))) if q_to is None else q_to[None]), status, why
 
     def _way_out(self, q: Array, end: str, deadline: float) -> tuple[Array | None, str, str]:
         """(q, or where the route leaves from instead: ``collision.exits.exact_exit`` when
