@@ -18,6 +18,7 @@ from chekhov.execute.motion import (
     Bounds,
     State,
     brake_along,
+    hold,
     join,
     ruckig_piece,
     stop_from,
@@ -231,6 +232,82 @@ def test_a_moving_arm_whose_stop_hits_the_scene_escapes_exactly_free(world, limi
         if rescued:
             break
     assert rescued == 1
+def _heading_into_the_scene(world, limits, rng):
+    """A moving arm 10-30 ms from the scene at 0.5-1x the slowest joint's velocity limit,
+    heading straight at it (the first contact along a random direction, exact checker)."""
+    robot = world.robot
+    while True:
+        q = robot.sample_uniform(rng, 1)[0]
+        d = rng.normal(size=robot.dof)
+        d /= np.abs(d).max()
+        Q = q + np.arange(0.0, 1.0, 0.002)[:, None] * d
+        if not world.exact.is_valid(q) or not robot.within_limits(Q).all():
+            continue
+        free = np.array([world.exact.is_valid(x) for x in Q])
+        if free.all():
+            continue
+        speed = rng.uniform(0.5, 1.0) * limits.velocity.min()
+        q0 = Q[int(np.argmin(free)) - 1] - d * speed * rng.uniform(0.01, 0.03)
+        if world.exact.is_valid(q0) and robot.within_limits(q0[None]).all():
+            return State(q0, d * speed, np.zeros_like(q0))
+
+
+def test_a_kicked_arm_about_to_hit_the_scene_swerves_exactly_free(world, limits):
+    """Arms heading into the scene 10-30 ms away, whose stop is in contact within a tick or
+    two: the immediate motion (fast checks only) is a constant-acceleration swerve on some
+    (at least 1 of 60 seeded states); every swerve is free by the exact decision at 1 ms
+    steps over its swerve (its stop too, when one was found whose stop is safe), within the
+    limits (finite differences) and at rest at its end."""
+    robot = world.robot
+    bounds = Bounds(robot.lower, robot.upper)
+    ex = CONFIG.executor
+    evader = Evader(world, ObstacleTracks(), EvadeSettings(ex.horizon_s, ex.margin_m,
+                                                           ex.check_dt_s), limits, bounds)
+    world.fast.set_obstacles({})
+    world.exact.set_obstacles({})
+    rng = np.random.default_rng(0)
+    swerves = 0
+    for _ in range(60):
+        start = _heading_into_the_scene(world, limits, rng)
+        move = evader.immediate([], start, 0.0, {}, None)
+        if move.pieces[0].kind != "swerve":
+            assert move.pieces[0].kind == "brake"        # the stop, the last resort
+            continue
+        swerves += 1
+        ts, Q, V = _sampled(move, 0.0, move.t_end + 0.01)
+        whole = evader.safe_in_time([move], 0.0, {}, 0.0)[0]
+        span = ts <= (move.t_end if whole else move.pieces[0].t_end)
+        assert exact_path_decision(world.fast, world.exact, Q[span], 2).valid
+        assert robot.within_limits(Q, tol=1e-6).all() and _fd_ok(ts, Q, V, limits)
+        assert np.abs(move.end.qd).max() < 1e-9
+    assert swerves >= 1
+
+
+def test_a_kicked_arm_whose_join_back_is_free_is_joined_back_at_once(world, limits):
+    """The immediate motion after a kick in open space is the join back (the first smooth
+    move the fast checker calls free), not a stop or a swerve."""
+    rng = np.random.default_rng(3)
+    robot = world.robot
+    bounds = Bounds(robot.lower, robot.upper)
+    ex = CONFIG.executor
+    evader = Evader(world, ObstacleTracks(), EvadeSettings(ex.horizon_s, ex.margin_m,
+                                                           ex.check_dt_s), limits, bounds)
+    world.fast.set_obstacles({})
+    joined = 0
+    for _ in range(20):
+        q = robot.sample_uniform(rng, 1)[0]
+        if not world.fast.is_valid(q):
+            continue
+        start = State(q + 0.01, np.zeros_like(q), np.zeros_like(q))
+        back = join(start, 0.0, hold(q, 0.0), 0.0, limits, bounds)
+        if back is None or not world.fast.valid(back.positions(0.0, back.t_end + 0.1,
+                                                               0.01)[1]).all():
+            continue
+        assert evader.immediate([back], start, 0.0, {}, None) is back
+        joined += 1
+    assert joined >= 5
+
+
 def _script(world, index, **kw):
     q0, goal = start_and_goal(world, 0, index)
     return EpisodeScript(index, q0, goal, "", **kw)

@@ -20,7 +20,10 @@ unavoidable_collision_episodes, min_clearance_m and p5_clearance_m (over episode
 distance to the moving obstacles), reaction_latency_ms_p50/_p95/_p99 (disturbance observed →
 first answering motion commanded: a rejoin, a hold short of the conflict, a brake, a dodge
 or a new plan), resolve_latency_ms_p50/_p95/_p99 (→ a motion to the goal that answers it),
-replans_per_episode, safe_stops, dodges, holds, time_to_goal_ratio (median, against the
+replans_per_episode, safe_stops, dodges, holds, swerves (kicked arms whose every smooth
+move ran into something within a tick or two, sent on a sudden constant-acceleration swerve),
+immediate_ms_max (the longest a kicked arm's immediate motion took to choose; the loop
+commands it from the next tick), time_to_goal_ratio (median, against the
 episode's task alone: its goal changes, no forearm, no kick), limit_violations,
 overrun_steps (steps over a tick), undecided_checks (exact checks cut by their budget,
 answered safe), lag_rejoins (joins back onto a motion after one), compute_charged,

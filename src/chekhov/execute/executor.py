@@ -61,6 +61,16 @@ by the kick tolerances: a brake just begun differs by ~1e-4 rad/s after a tick, 
 it from there was a velocity step (3% of an acceleration limit in a react run)."""
 
 
+MOVING_ASIDE = ("dodge", "swerve")
+"""The kinds of motion piece that move the arm out of the way (no plan, no brake)."""
+
+IMMEDIATE_SHARE = 0.7
+"""The share of the control tick (``control_dt_s / wall_scale`` of wall time from the step's
+start) by which a kicked arm's immediate motion is chosen (:meth:`Evader.immediate
+<chekhov.execute.evade.Evader.immediate>`: its swerve search stops then; a chunk begun ends,
+~2 ms), so that the loop has it for the next tick."""
+
+
 class Executor:
     """Tracks a goal with the motion it commands, reacting to what each tick reports."""
 
@@ -94,6 +104,7 @@ class Executor:
         self._deadline: float | None = None
         self._search_again = False
         self._resuming = False
+        self._tick_end = math.inf
         c = self.config
         self.evader = Evader(world, self.tracks, EvadeSettings(c.horizon_s, c.margin_m,
                                                                c.check_dt_s),
@@ -103,6 +114,7 @@ class Executor:
     def step(self, obs: Observation) -> Command:
         """Take one tick's observation; the command for the next tick (t + control_dt_s)."""
         wall0 = time.perf_counter()
+        self._tick_end = wall0 + IMMEDIATE_SHARE * self.config.control_dt_s / self.wall_scale
         budget = self.config.search_budget_s
         self._deadline = None if budget is None else wall0 + budget
         self._submit_wall = 0.0
@@ -184,7 +196,12 @@ class Executor:
         self.reactions.append(Reaction("kick", t))
         start = State(np.asarray(obs.q, dtype=float), np.asarray(obs.qd, dtype=float), last.qdd)
         backs = self._joins_back(start, t)
-        self.immediate_motion = self.motion.then(self._within_limits(backs, start, t))
+        w = time.perf_counter()
+        immediate = self.evader.immediate(backs, start, t, self._seen, self._tick_end)
+        swerve = immediate.pieces[0].kind == "swerve"
+        self.counters.swerves += swerve
+        self.immediate_motion = self.motion.then(immediate)
+        self.counters.immediate_wall_s.append(self.wall_scale * (time.perf_counter() - w))
         back = self._rejoin(backs, t)
         if back is not None:
             self.counters.rejoins += 1
@@ -195,8 +212,8 @@ class Executor:
                 self._cancel()
                 self._need = self._need or "retry"
             return
-        self._cancel()
-        self._install(self._after_kick(start, t))
+        self._cancel()     # a swerve: every smooth move runs into something at once
+        self._install(immediate if swerve else self._after_kick(start, t))
         self._react(t + self.config.control_dt_s)
         self._need = "kick"
 
@@ -233,16 +250,6 @@ class Executor:
         return [b for b in (join(start, t, self.motion, e, self.limits, self.bounds)
                             for e in ends) if b is not None]
 
-    def _within_limits(self, backs: list[Motion], start: State, t: float) -> Motion:
-        """The first join back whose positions (every ``check_dt_s``) stay within the joint
-        limits — unchecked for collisions: what the loop commands until the step's checks
-        are done — else the stop from ``start``."""
-        for b in backs:
-            _, Q = b.positions(t, b.pieces[0].t_end, self.config.check_dt_s)
-            if self.world.robot.within_limits(Q).all():
-                return b
-        return stop_from(start, t, self.limits, self.bounds)
-
     def _rejoin(self, backs: list[Motion], t: float) -> Motion | None:
         """The first of the joins back (:meth:`_joins_back`) that is free (exact, to 0.1 s
         past the join) or safe in time of the predicted motion — with the margin, else
@@ -273,7 +280,7 @@ class Executor:
         state = self.motion.sample(t)
         lead = self._handoff_time(t) - t + stop_time(state, self.limits) + \
             self._t_react(t) - t
-        if self.motion.kind_at(t) in ("rest", "brake", "dodge"):
+        if self.motion.kind_at(t) in ("rest", "brake", *MOVING_ASIDE):
             lead = max(lead, EVADE_LEAD_S)       # a standing arm needs time to get away
         if t_hit - t <= lead + 2 * c.control_dt_s:
             self._evade(t, t_hit)
@@ -286,7 +293,8 @@ class Executor:
         arm holds short of the conflict while the plan asked for comes, and stays short of it
         should none come. A plan asked for from a state before the brake stays good."""
         assert self.motion is not None
-        if self._held == self._token or self.motion.kind_at(t) in ("rest", "brake", "dodge"):
+        if self._held == self._token or \
+                self.motion.kind_at(t) in ("rest", "brake", *MOVING_ASIDE):
             return
         t1 = self._t_react(t)
         held = self.evader.hold_short(self.motion, t1, t_hit, self._seen)
@@ -312,18 +320,18 @@ class Executor:
         assert self.motion is not None
         t_r = self._t_react(t)
         kind = self.motion.kind_at(t)
-        if kind == "dodge" and self._safe([self.motion], t).all():
+        if kind in MOVING_ASIDE and self._safe([self.motion], t).all():
             return
         moving = bool(np.abs(self.motion.sample(t).qd).max() > 1e-6)
         brake = brake_along(self.motion, t_r, self.limits) if moving and kind not in (
-            "brake", "dodge") else None
+            "brake", *MOVING_ASIDE) else None
         if brake is not None and self._safe([brake], t_r).all():
             self.counters.safe_stops += 1
         elif self._dodge(t) or (self._search_again and brake is not None and
                                 brake.t_end + 2 * self.config.control_dt_s < t_hit):
             return
         else:
-            if brake is None and moving and kind == "dodge":
+            if brake is None and moving and kind in MOVING_ASIDE:
                 brake = self._stop_if_safer(t)
             if brake is None:
                 return      # nothing new: a plan asked for stays asked for
@@ -389,7 +397,7 @@ class Executor:
         if reply.trajectory is None:
             self._failed(reply.status)
             if reply.status == "invalid_start" and self.motion is not None and \
-                    self.motion.kind_at(t) != "dodge":
+                    self.motion.kind_at(t) not in MOVING_ASIDE:
                 self._dodge(t)
             return
         t_join = self._t_react(t)

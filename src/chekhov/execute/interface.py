@@ -143,3 +143,9 @@ class Counters:
     failures: list[str] = field(default_factory=list)
     step_wall_s: list[float] = field(default_factory=list)
     """s, each step's own compute time (an inline worker's planning left out)."""
+    swerves: int = 0
+    """kicked arms given a swerve as the immediate motion (every smooth move ran into
+    something within a tick or two)."""
+    immediate_wall_s: list[float] = field(default_factory=list)
+    """s, the compute time of each immediate motion after a kick (times ``wall_scale``):
+    the loop commands it from the next tick, so it must be under one."""

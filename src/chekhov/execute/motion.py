@@ -266,6 +266,40 @@ def ruckig_piece(start: State, goal: State, t0: float, limits: Limits, kind: str
     return Piece(t0, t0 + traj.duration, sample, kind, batch_sampler(traj))
 
 
+def accelerating(start: State, t0: float, acc: Array, duration_s: float, limits: Limits
+                 ) -> Piece:
+    """From ``start`` at clock time t0 (s), each joint at the constant acceleration ``acc``
+    (K,) rad/s² (within the limits) for ``duration_s`` s — until its velocity limit, then at
+    that velocity. Its acceleration steps at t0 (no jerk limit: the swerve of a kicked arm
+    :meth:`~chekhov.execute.evade.Evader.swerve`, when every smooth move is in contact
+    within a tick or two)."""
+    a = np.asarray(acc, dtype=float)
+
+    def batch(us: Array) -> tuple[Array, Array, Array]:
+        q, qd, qdd = accelerating_states(start, a[None], np.asarray(us, dtype=float), limits)
+        return q[0], qd[0], qdd[0]
+
+    def sample(u: float) -> State:
+        q, qd, qdd = batch(np.array([u]))
+        return State(q[0], qd[0], qdd[0])
+    return Piece(t0, t0 + duration_s, sample, "swerve", batch)
+
+
+def accelerating_states(start: State, A: Array, us: Array, limits: Limits
+                        ) -> tuple[Array, Array, Array]:
+    """(q, q̇, q̈), each (N, M, K), of N :func:`accelerating` moves from ``start`` at the
+    accelerations A (N, K) rad/s², at times us (M,) s from their start."""
+    v0 = np.clip(np.asarray(start.qd, dtype=float), -limits.velocity, limits.velocity)
+    a = A[:, None, :]
+    v_cap = np.where(a > 0, limits.velocity, -limits.velocity)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tau = np.where(a != 0, (v_cap - v0) / a, np.inf)   # s, until the velocity limit
+    u = us[None, :, None]
+    ua = np.minimum(u, tau)
+    q = start.q + v0 * ua + 0.5 * a * ua * ua + (v0 + a * ua) * (u - ua)
+    return q, v0 + a * ua, np.where(u < tau, a, 0.0)
+
+
 def braking_room(start: State, limits: Limits, jerk: Array) -> Array:
     """start's acceleration (K,) rad/s², within the limits and such that bringing it to 0 at
     ``jerk`` (K,) rad/s³ keeps the velocity within its limit: where it pushes the velocity

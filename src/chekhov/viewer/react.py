@@ -76,8 +76,8 @@ class LiveState:
     Attributes:
         episode: the episode's index. t: s, the episode's clock.
         q: (K,) rad, where the robot is at t.
-        mode: what the command does ("plan", "join", "brake", "dodge", "rest"), or "setup"
-            while the next episode is prepared, "error" when the loop failed.
+        mode: what the command does ("plan", "join", "brake", "dodge", "swerve", "rest"), or
+            "setup" while the next episode is prepared, "error" when the loop failed.
         script: the episode's script (its forearm: ``obstacles_at(script.obstacles, t)``).
         goal: the goal now. motion: the commanded motion (replaced on each replan).
         reaction: a copy of the latest disturbance answered (``t_reacted`` set), or None.
