@@ -79,7 +79,7 @@ IMMEDIATE_LOOK_S = 0.1
 step overran its tick by up to ~0.1 s."""
 SWERVE_TRIES = 512
 """Random constant accelerations :meth:`Evader.swerve` tries at most."""
-SWERVE_CHUNK = 32
+SWERVE_CHUNK = 16
 """Swerves tried at a time."""
 SWERVE_S = 0.1
 """s, how long a swerve keeps its acceleration before it stops."""
@@ -384,7 +384,7 @@ class Evader:
             if c0 == 0 and q_hit is not None:
                 A = self._away(q_hit, A)
             A = self._braking_at_limits(now, A)
-            A = A[self._swerves_clear(now, A)]
+            A = A[self._swerves_clear(now, A, deadline)]
             for k in range(0, len(A), SWERVE_JUDGED):
                 moves = []
                 for acc in A[k:k + SWERVE_JUDGED]:
@@ -433,15 +433,19 @@ class Evader:
         scale = np.resize([0.0, 0.25, 0.5, 1.0], len(A))[:, None]
         return np.clip(push + scale * A, -acc, acc)
 
-    def _swerves_clear(self, now: State, A: Array) -> NDArray[np.bool_]:
+    def _swerves_clear(self, now: State, A: Array, deadline: float | None
+                       ) -> NDArray[np.bool_]:
         """Which of the swerves from ``now`` at accelerations A (N, K) rad/s² stay within
         the limits and fast-free of what the fast checker holds for :data:`SWERVE_S` (every
-        check step; the first :data:`SWERVE_FIRST` samples of all first: they drop most)."""
+        check step; the first :data:`SWERVE_FIRST` samples of all first: they drop most);
+        none when ``deadline`` passes between the two."""
         dt, robot = self.settings.check_dt_s, self.world.robot
         Q = accelerating_states(now, A, np.arange(dt, SWERVE_S + 1e-9, dt), self.limits)[0]
         ok = np.ones(len(A), dtype=bool)
         for part in (slice(0, SWERVE_FIRST), slice(SWERVE_FIRST, None)):
             n = int(ok.sum())
+            if n and part.start and past(deadline):
+                return np.zeros(len(A), dtype=bool)
             if n:
                 P = Q[ok, part].reshape(-1, len(now.q))
                 ok[ok] = (self.world.fast.valid(P) & robot.within_limits(P)).reshape(
