@@ -26,7 +26,7 @@ from chekhov.execute.motion import (
 )
 from chekhov.execute.obstacles import MovingObstacle, ObstacleTracks
 from chekhov.execute.script import EpisodeScript, GoalChange, Kick, make_script, start_and_goal
-from chekhov.execute.simulate import EpisodeRecord, SimConfig
+from chekhov.execute.simulate import EpisodeRecord, SimConfig, shrunk_kick
 from chekhov.robot.goal import Goal
 from chekhov.scene.model import Shape
 from chekhov.timing import TimingConfig, joint_limits, time_parameterize
@@ -281,6 +281,39 @@ def test_a_kicked_arm_about_to_hit_the_scene_swerves_exactly_free(world, limits)
         assert robot.within_limits(Q, tol=1e-6).all() and _fd_ok(ts, Q, V, limits)
         assert np.abs(move.end.qd).max() < 1e-9
     assert swerves >= 1
+
+
+def test_a_kick_never_throws_a_moving_arm_into_the_scene_faster_than_any_reaction(world,
+                                                                                   limits):
+    """Scripted kicks leave a way out: on arms heading into the scene 10-30 ms away, a kick
+    of up to 0.1 rad per joint is dropped or shrunk so that the kicked arm going on at its
+    velocity for 0.1 s is free (the exact checker at 1 ms of motion, not the decision the
+    kick used); on arms at rest in free space, kicks that land free and within the limits are
+    kept whole."""
+    robot = world.robot
+    world.fast.set_obstacles({})
+    world.exact.set_obstacles({})
+    rng = np.random.default_rng(5)
+    dropped = 0
+    for _ in range(20):
+        start = _heading_into_the_scene(world, limits, rng)
+        dq = shrunk_kick(world, start.q, start.qd, rng.uniform(-0.1, 0.1, robot.dof), 4,
+                         limits.acceleration)
+        if dq is None:
+            dropped += 1
+            continue
+        Q = start.q + dq + np.arange(0.0, 0.1 + 1e-9, 1e-3)[:, None] * start.qd
+        assert all(world.exact.is_valid(q) for q in Q)
+    whole = 0
+    for _ in range(40):
+        q = robot.sample_uniform(rng, 1)[0]
+        dq = rng.uniform(-0.1, 0.1, robot.dof)
+        z = np.zeros_like(q)
+        if not (world.exact.is_valid(q + dq) and robot.within_limits((q + dq)[None]).all()):
+            continue
+        assert np.array_equal(shrunk_kick(world, q, z, dq, 4, limits.acceleration), dq)
+        whole += 1
+    assert dropped >= 10 and whole >= 10
 
 
 def test_a_kicked_arm_whose_join_back_is_free_is_joined_back_at_once(world, limits):

@@ -6,11 +6,12 @@ change to a third object's pre-grasp, and a kick.
 The script leaves the arm a way out: the forearm (a capsule: a cylinder with a sphere on each
 end, radius :data:`FOREARM_RADIUS_M`) moves at most 1 m/s and its whole sweep stays at least
 :data:`BASE_CLEARANCE_M` horizontally from the robot's base (its torso) and
-:data:`SHOULDER_CLEARANCE_M` from the arm's first joint; a kick is at most
-0.1 rad per joint and is shrunk (halved, up to 4 times) until the kicked configuration is within
-the limits and collision-free. The forearm appears at least 0.3 m from the arm (as it is
-in the undisturbed motion then), so its first frame is no contact already. Units: s, m,
-rad.
+:data:`SHOULDER_CLEARANCE_M` from the arm's first joint; a kick is at most 0.1 rad per joint
+and is shrunk (halved, up to 4 times, when it lands:
+:func:`~chekhov.execute.simulate.shrunk_kick`) until the kicked configuration is within the
+limits and collision-free, and so is the kicked arm going on at its velocity for 0.1 s. The
+forearm appears at least 0.3 m from the arm (as it is in the undisturbed motion then), so its
+first frame is no contact already. Units: s, m, rad.
 """
 
 from __future__ import annotations
