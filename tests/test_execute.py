@@ -712,7 +712,7 @@ def test_the_dodge_is_the_nearest_target_whose_move_is_safe_sample_by_sample(wor
     first, chunks): its answer must still be the nearest target whose Ruckig move is within
     the limits and free of its window's sweep at every check step, each sample checked on
     its own."""
-    from chekhov.execute.evade import WINDOW_S
+    from chekhov.execute.evade import window_edges
     q0, _, tracks, t0 = _ball_at_the_elbow(world, 0.08)
     c = CONFIG.executor
     bounds = Bounds(world.robot.lower, world.robot.upper)
@@ -730,12 +730,15 @@ def test_the_dodge_is_the_nearest_target_whose_move_is_safe_sample_by_sample(wor
         piece = ruckig_piece(now, State(q_r, z, z), t0, limits, "dodge", bounds)
         if piece is None:
             continue
-        t_end = max(t0 + len(packs) * WINDOW_S, piece.t_end)
+        edges = window_edges(c.horizon_s)
+        assert len(edges) == len(packs) + 1
+        t_end = max(t0 + edges[-1], piece.t_end)
         ts = np.append(np.arange(t0, t_end, c.check_dt_s), t_end)
         safe = True
         for t in ts:
             q = piece.sample(min(t, piece.t_end) - t0).q
-            k = min(int((t - t0) / WINDOW_S + 1e-9), len(packs) - 1)
+            k = min(int(np.searchsorted(edges, t - t0 + 1e-9, side="right")) - 1,
+                    len(packs) - 1)
             inside = world.robot.within_limits(q[None])[0]
             if not (inside and world.fast.valid_in(packs[k], q[None])[0]):
                 safe = False
@@ -869,6 +872,46 @@ def test_a_dodge_gone_unsafe_with_no_other_stops_when_stopping_is_safe(world, pl
     truth = TrueWorld(world, (ball,))
     assert not any(truth.collides(q, float(s)) for q, s in zip(Q, ts, strict=True))
     assert truth.collides(q1, 1.0)          # where the dodge ends: contact
+
+
+def test_a_dodge_found_after_its_tick_starts_where_the_arm_will_be(world, planner, limits):
+    """A dodge from the state one tick ahead, found by a step that has already run 25 ms:
+    made again from the tick the step's answer is in by (3 ticks on), from the state the
+    motion is in there (position and velocity continuous), to the same target; a step that
+    ends in its tick keeps the dodge as found."""
+    import time
+
+    from chekhov.execute.executor import Executor
+    from chekhov.execute.motion import Motion
+    from chekhov.execute.worker import InlineWorker
+    q0, goal = start_and_goal(world, 0, 0)
+    q1 = q0.copy()
+    q1[0] = np.clip(q1[0] + 0.5, world.robot.lower[0], world.robot.upper[0])
+    bounds = Bounds(world.robot.lower, world.robot.upper)
+    c = CONFIG.executor
+    ex = Executor(world, InlineWorker(world, planner, c.timing), goal, c)
+    z = np.zeros_like(q0)
+    going = ruckig_piece(State(q0, z, z), State(q1, z, z), 0.0, limits, "plan", bounds)
+    assert going is not None
+    ex.motion = Motion((going,))
+    ex._seen = {}
+    world.fast.set_obstacles({})
+    t = 0.1
+    aside = q0 + 0.2 * np.sign(np.random.default_rng(0).normal(size=len(q0)))
+    aside = np.clip(aside, world.robot.lower, world.robot.upper)
+    found = ruckig_piece(ex.motion.sample(t + DT), State(aside, z, z), t + DT, limits, "dodge",
+                         bounds)
+    assert found is not None
+    move = Motion((found,))
+    ex._wall0 = time.perf_counter() - 0.025
+    again = ex._on_time(move, t, t + DT)
+    assert again is not move        # made again (and safe: nothing but the scene is there)
+    assert again.t_start == pytest.approx(t + 3 * DT)
+    s_old, s_new = ex.motion.sample(t + 3 * DT), again.sample(t + 3 * DT)
+    assert np.allclose(s_old.q, s_new.q) and np.allclose(s_old.qd, s_new.qd)
+    assert np.allclose(again.end.q, aside)
+    ex._wall0 = time.perf_counter()
+    assert ex._on_time(move, t, t + DT) is move
 
 
 def test_after_a_step_over_its_tick_any_offset_is_a_lag_to_join_back(world, planner, limits):

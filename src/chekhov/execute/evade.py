@@ -11,6 +11,7 @@ Units: s, rad, m.
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from collections.abc import Iterator
@@ -60,6 +61,11 @@ DODGE_POINTS = 3
 DAMPING = 0.05
 """The damping of the least-squares Jacobian steps (m)."""
 WINDOW_S = 0.1
+"""s, the time windows of :meth:`Evader.safe_in_time` after the first."""
+FIRST_WINDOW_S = 0.03
+"""s, the first window (:func:`window_edges`): an arm a tick late onto a dodge found a tick
+earlier is often inside the sweep of the forearm's next 0.1 s (it is in the forearm's way:
+that is why it dodges), and every move from there was judged unsafe at its first sample."""
 """s, the time windows of :meth:`Evader.safe_in_time`."""
 FD_RAD = 1e-4
 """rad, the finite-difference step of the points' Jacobians."""
@@ -95,6 +101,13 @@ ESCAPE_TRIES = 64
 """Random constant accelerations :meth:`Evader.escapes` tries."""
 ESCAPE_S = 0.3
 """s, how long an escape follows its acceleration before it stops."""
+
+
+def window_edges(horizon_s: float) -> Array:
+    """s from a window set's start: 0, :data:`FIRST_WINDOW_S`, then every :data:`WINDOW_S`
+    to the horizon (at least one window)."""
+    rest = np.arange(WINDOW_S, horizon_s + WINDOW_S - 1e-9, WINDOW_S)
+    return np.concatenate([[0.0], [min(FIRST_WINDOW_S, rest[0])], rest[rest > FIRST_WINDOW_S]])
 
 
 @dataclass(frozen=True)
@@ -133,8 +146,8 @@ class Evader:
 
     def windows(self, t0: float, restore: Obstacles, margin_m: float | None = None
                 ) -> list[PackedWorld]:
-        """The fast checker's packed world holding each :data:`WINDOW_S` window's predicted
-        sweep from t0 (s) over the horizon (inflated by ``margin_m``, m; the settings' by
+        """The fast checker's packed world holding each window's (:func:`window_edges`)
+        predicted sweep from t0 (s) over the horizon (inflated by ``margin_m``, m; the settings' by
         default), for :meth:`safe_in_time`. The fast checker gets ``restore`` back after.
         Kept until the tracks change (a sensor frame): a tick's reactions ask for the same
         windows several times (~1 ms each)."""
@@ -147,9 +160,9 @@ class Evader:
             return kept
         packs: list[PackedWorld] = []
         try:
-            for k in range(max(1, math.ceil(c.horizon_s / WINDOW_S))):
-                fast.set_obstacles(predicted_obstacles(self.tracks, t0 + k * WINDOW_S,
-                                                       WINDOW_S, margin))
+            edges = window_edges(c.horizon_s)
+            for a, b in itertools.pairwise(edges):
+                fast.set_obstacles(predicted_obstacles(self.tracks, t0 + a, b - a, margin))
                 packs.append(fast.packed)
         finally:
             fast.set_obstacles(restore)
@@ -162,8 +175,8 @@ class Evader:
                      margin_m: float | None = None, *,
                      windows: list[PackedWorld] | None = None) -> NDArray[np.bool_]:
         """Which ``motions`` (all starting at t0, s) are within the limits and free of the
-        obstacles' predicted motion, window by window: over each :data:`WINDOW_S` of the
-        horizon the fast checker (conservative) holds the sweep of that window only
+        obstacles' predicted motion, window by window: over each window of the horizon
+        (:func:`window_edges`) the fast checker (conservative) holds the sweep of that window only
         (:meth:`windows`, made here unless given), and the motions' configurations of that
         window are checked against it; the last window's sweep also holds for the rest of
         each motion."""
@@ -173,7 +186,7 @@ class Evader:
         # sample checked first (most candidates collide, and are dropped on fewer checks),
         # then the rest of those still in the running — each window's configurations of
         # every such motion in one call
-        t_horizon = t0 + len(packs) * WINDOW_S
+        t_horizon = t0 + window_edges(self.settings.horizon_s)[-1]
         samples = [m.positions(t0, max(t_horizon, m.t_end), dt) for m in motions]
         ok = np.array([bool(robot.within_limits(Q).all()) for _, Q in samples], dtype=bool)
         for coarse in (True, False):
@@ -187,9 +200,9 @@ class Evader:
         """Set ``ok[i]`` False for each motion i still ok whose configurations picked (times
         (N,) s, positions (N, K) rad, which of them (N,)) collide with their window's sweep
         (the last window's from its start on)."""
-        fast = self.world.fast
+        fast, edges = self.world.fast, window_edges(self.settings.horizon_s)
         for k, packed in enumerate(packs):
-            a, b = t0 + k * WINDOW_S - 1e-9, t0 + (k + 1) * WINDOW_S + 1e-9
+            a, b = t0 + edges[k] - 1e-9, t0 + edges[k + 1] + 1e-9
             last = k == len(packs) - 1
             rows = [(i, Q[pick & (ts >= a) & ((ts <= b) | last)])
                     for i, (ts, Q, pick) in enumerate(picked) if ok[i]]
@@ -286,10 +299,12 @@ class Evader:
             if piece is None:
                 continue
             move = Motion((piece,))
-            ts, Q = move.positions(t0, max(t0 + len(packs) * WINDOW_S, move.t_end), dt)
+            edges = window_edges(self.settings.horizon_s)
+            ts, Q = move.positions(t0, max(t0 + edges[-1], move.t_end), dt)
             if not self.world.robot.within_limits(Q).all():
                 continue
-            win = np.minimum(((ts - t0) / WINDOW_S + 1e-9).astype(int), len(packs) - 1)
+            win = np.minimum(np.searchsorted(edges, ts - t0 + 1e-9, side="right") - 1,
+                             len(packs) - 1)
             free = np.ones(len(ts), dtype=bool)
             for w in np.unique(win):
                 free[win == w] = self.world.fast.valid_in(packs[w], Q[win == w])

@@ -34,6 +34,7 @@ from chekhov.execute.motion import (
     brake_along,
     hold,
     join,
+    ruckig_piece,
     stop_from,
     stop_time,
     trajectory_motion,
@@ -60,6 +61,9 @@ had meanwhile) is joined back onto the new motion when it is off it by more than
 by the kick tolerances: a brake just begun differs by ~1e-4 rad/s after a tick, and commanding
 it from there was a velocity step (3% of an acceleration limit in a react run)."""
 
+
+ON_TIME_MARGIN_S = 0.002
+"""s of wall time a step takes after its dodge (:meth:`Executor._on_time`)."""
 
 MOVING_ASIDE = ("dodge", "swerve")
 """The kinds of motion piece that move the arm out of the way (no plan, no brake)."""
@@ -105,6 +109,7 @@ class Executor:
         self._search_again = False
         self._resuming = False
         self._tick_end = math.inf
+        self._wall0 = time.perf_counter()
         c = self.config
         self.evader = Evader(world, self.tracks, EvadeSettings(c.horizon_s, c.margin_m,
                                                                c.check_dt_s),
@@ -113,7 +118,7 @@ class Executor:
     # --- the tick ---------------------------------------------------------------------
     def step(self, obs: Observation) -> Command:
         """Take one tick's observation; the command for the next tick (t + control_dt_s)."""
-        wall0 = time.perf_counter()
+        wall0 = self._wall0 = time.perf_counter()
         self._tick_end = wall0 + IMMEDIATE_SHARE * self.config.control_dt_s / self.wall_scale
         budget = self.config.search_budget_s
         self._deadline = None if budget is None else wall0 + budget
@@ -453,12 +458,34 @@ class Executor:
         if move is None:
             self._search_again = self.evader.cut_short
             return False
+        move = self._on_time(move, t, t_r)
         self._cancel()
         self._need = "obstacle"
         self._install(move)
         self.counters.dodges += 1
-        self._react(t_r)
+        self._react(move.t_start)
         return True
+
+    def _on_time(self, move: Motion, t: float, t_r: float) -> Motion:
+        """A dodge ``move`` from the state at t_r (s), made again to the same target from
+        the tick this step's answer will be in by, when the step has run past t_r: the arm
+        goes on with the motion it has until then, and a dodge from t_r found it a tick
+        behind (a lag, joined back) — from inside the obstacle's sweep, where no join back
+        was safe: tabletop_pole 7 and kitchen 18 then braked for 15-20 ticks into the
+        forearm. Kept only when safe in time (no margin), else ``move``."""
+        dt = self.config.control_dt_s
+        spent = self.wall_scale * (time.perf_counter() - self._wall0 - self._submit_wall)
+        t_in = t + dt * math.ceil((spent + ON_TIME_MARGIN_S) / dt - 1e-9)
+        if t_in <= t_r or move.pieces[0].kind != "dodge":
+            return move
+        assert self.motion is not None
+        piece = ruckig_piece(self.motion.sample(t_in), move.end, t_in, self.limits, "dodge",
+                             self.bounds)
+        if piece is None:
+            return move
+        again = Motion((piece,))
+        ok = self.evader.safe_in_time([self.motion.then(again)], t, self._seen, 0.0)
+        return again if ok.all() else move
 
     def _out_of_way(self, now: State, t0: float, *, search: bool = True) -> Motion | None:
         """From ``now`` at clock time t0 (s): the way out of the static scene when the arm is
