@@ -197,19 +197,13 @@ def test_a_stop_after_a_kick_stays_within_the_position_limits(world, limits):
     assert _fd_ok(ts, Q, V, limits)
 
 
-
-
 def test_a_moving_arm_whose_stop_hits_the_scene_escapes_exactly_free(world, limits):
     """Moving arms (random free configurations, 0.5-1× the slowest joint's limit) whose stop
     runs into the scene by the exact checker: within 400 states, one whose escape is free by
     the exact decision at 1 ms steps and within the limits (finite differences)."""
     robot = world.robot
     bounds = Bounds(robot.lower, robot.upper)
-    ex = CONFIG.executor
-    evader = Evader(world, ObstacleTracks(), EvadeSettings(ex.horizon_s, ex.margin_m,
-                                                           ex.check_dt_s), limits, bounds)
-    world.fast.set_obstacles({})
-    world.exact.set_obstacles({})
+    evader = _scene_evader(world, limits)
     rng = np.random.default_rng(0)
     rescued = 0
     for _ in range(400):
@@ -232,6 +226,16 @@ def test_a_moving_arm_whose_stop_hits_the_scene_escapes_exactly_free(world, limi
         if rescued:
             break
     assert rescued == 1
+
+
+def _scene_evader(world, limits):
+    """An evader with the executive's settings (seed 0) in ``world`` holding no dynamic
+    obstacles (the fast and the exact checker cleared)."""
+    world.fast.set_obstacles({})
+    world.exact.set_obstacles({})
+    return _seeded_evader(world, ObstacleTracks(), limits, seed=0)
+
+
 def _heading_into_the_scene(world, limits, rng):
     """A moving arm 10-30 ms from the scene at 0.5-1x the slowest joint's velocity limit,
     heading straight at it (the first contact along a random direction, exact checker)."""
@@ -259,12 +263,7 @@ def test_a_kicked_arm_about_to_hit_the_scene_swerves_exactly_free(world, limits)
     steps over its swerve (its stop too, when one was found whose stop is safe), within the
     limits (finite differences) and at rest at its end."""
     robot = world.robot
-    bounds = Bounds(robot.lower, robot.upper)
-    ex = CONFIG.executor
-    evader = Evader(world, ObstacleTracks(), EvadeSettings(ex.horizon_s, ex.margin_m,
-                                                           ex.check_dt_s), limits, bounds)
-    world.fast.set_obstacles({})
-    world.exact.set_obstacles({})
+    evader = _scene_evader(world, limits)
     rng = np.random.default_rng(0)
     swerves = 0
     for _ in range(60):
@@ -322,10 +321,7 @@ def test_a_kicked_arm_whose_join_back_is_free_is_joined_back_at_once(world, limi
     rng = np.random.default_rng(3)
     robot = world.robot
     bounds = Bounds(robot.lower, robot.upper)
-    ex = CONFIG.executor
-    evader = Evader(world, ObstacleTracks(), EvadeSettings(ex.horizon_s, ex.margin_m,
-                                                           ex.check_dt_s), limits, bounds)
-    world.fast.set_obstacles({})
+    evader = _scene_evader(world, limits)
     joined = 0
     for _ in range(20):
         q = robot.sample_uniform(rng, 1)[0]
@@ -700,11 +696,11 @@ def test_a_resting_arm_dodges_a_forearm_coming_at_it(world, limits):
     assert not any(truth.collides(q, float(t)) for q, t in zip(Q, ts, strict=True))
 
 
-def _seeded_evader(world, tracks, limits):
+def _seeded_evader(world, tracks, limits, seed=3):
     """An evader with the executive's settings and a fixed seed (the same targets each time)."""
     c = CONFIG.executor
     return Evader(world, tracks, EvadeSettings(c.horizon_s, c.margin_m, c.check_dt_s), limits,
-                  Bounds(world.robot.lower, world.robot.upper), seed=3)
+                  Bounds(world.robot.lower, world.robot.upper), seed=seed)
 
 
 def test_the_dodge_is_the_nearest_target_whose_move_is_safe_sample_by_sample(world, limits):
