@@ -108,7 +108,6 @@ class Executor:
         self._deadline: float | None = None
         self._search_again = False
         self._resuming = False
-        self._tick_end = math.inf
         self._wall0 = time.perf_counter()
         c = self.config
         self.evader = Evader(world, self.tracks, EvadeSettings(c.horizon_s, c.margin_m,
@@ -119,7 +118,6 @@ class Executor:
     def step(self, obs: Observation) -> Command:
         """Take one tick's observation; the command for the next tick (t + control_dt_s)."""
         wall0 = self._wall0 = time.perf_counter()
-        self._tick_end = wall0 + IMMEDIATE_SHARE * self.config.control_dt_s / self.wall_scale
         budget = self.config.search_budget_s
         self._deadline = None if budget is None else wall0 + budget
         self._submit_wall = 0.0
@@ -144,9 +142,14 @@ class Executor:
         s = self.motion.sample(t + dt)
         cmd = Command(t + dt, s.q, s.qd, s.qdd, self.motion.kind_at(t + dt))
         self._last = cmd
-        wall = self.wall_scale * (time.perf_counter() - wall0 - self._submit_wall)
+        wall = self._spent()
         self.counters.step_wall_s.append(wall)
         return cmd
+
+    def _spent(self) -> float:
+        """s, this step's own compute so far (an inline worker's planning left out), times
+        ``wall_scale``."""
+        return self.wall_scale * (time.perf_counter() - self._wall0 - self._submit_wall)
 
     def warmup(self) -> float:
         """Load (on a fresh install: compile, ~1 s) the compiled kernels a reaction uses —
@@ -202,7 +205,8 @@ class Executor:
         start = State(np.asarray(obs.q, dtype=float), np.asarray(obs.qd, dtype=float), last.qdd)
         backs = self._joins_back(start, t)
         w = time.perf_counter()
-        immediate = self.evader.immediate(backs, start, t, self._seen, self._tick_end)
+        tick_end = self._wall0 + IMMEDIATE_SHARE * self.config.control_dt_s / self.wall_scale
+        immediate = self.evader.immediate(backs, start, t, self._seen, tick_end)
         swerve = immediate.pieces[0].kind == "swerve"
         self.counters.swerves += swerve
         self.immediate_motion = self.motion.then(immediate)
@@ -474,8 +478,7 @@ class Executor:
         was safe: tabletop_pole 7 and kitchen 18 then braked for 15-20 ticks into the
         forearm. Kept only when safe in time (no margin), else ``move``."""
         dt = self.config.control_dt_s
-        spent = self.wall_scale * (time.perf_counter() - self._wall0 - self._submit_wall)
-        t_in = t + dt * math.ceil((spent + ON_TIME_MARGIN_S) / dt - 1e-9)
+        t_in = t + dt * math.ceil((self._spent() + ON_TIME_MARGIN_S) / dt - 1e-9)
         if t_in <= t_r or move.pieces[0].kind != "dodge":
             return move
         assert self.motion is not None
