@@ -282,6 +282,45 @@ def test_a_kicked_arm_about_to_hit_the_scene_swerves_exactly_free(world, limits)
     assert swerves >= 1
 
 
+def test_the_swerve_filter_keeps_every_swerve_that_is_safe_in_time(world, limits):
+    """The swerves' first filter (the swerve alone against each window's sweep, no margin)
+    saves work for the test of the whole swerve and stop (safe in time, no margin) and is
+    never stricter: moving arms around the elbow a ball flies at — every random swerve safe in
+    time passes it, and some are (at least 10 of 30 x 32). Against the whole horizon's
+    sweep at once, as the filter had it, each of those would have been dropped."""
+    from chekhov.execute.evade import SWERVE_S
+    from chekhov.execute.motion import Motion, accelerating
+    from chekhov.execute.obstacles import predicted_obstacles
+    q0, _, tracks, t0 = _ball_at_the_elbow(world, 0.06)
+    c = CONFIG.executor
+    bounds = Bounds(world.robot.lower, world.robot.upper)
+    evader = _seeded_evader(world, tracks, limits)
+    seen = predicted_obstacles(tracks, t0, c.horizon_s, c.margin_m)
+    packs = evader.windows(t0, seen, 0.0)
+    world.fast.set_obstacles(seen)
+    rng = np.random.default_rng(0)
+    safe_total = dropped_by_union = 0
+    for _ in range(30):
+        d = rng.normal(size=len(q0))
+        qd = d / np.abs(d).max() * rng.uniform(0.2, 1.0) * limits.velocity.min()
+        now = State(q0 + rng.uniform(-0.1, 0.1, len(q0)), qd, np.zeros_like(q0))
+        A = rng.uniform(-1.0, 1.0, (32, len(q0))) * limits.acceleration
+        clear = evader._swerves_clear(now, t0, A, packs, None)
+        moves = []
+        for a in A:
+            piece = accelerating(now, t0, a, SWERVE_S, limits)
+            stop = stop_from(piece.sample(SWERVE_S), piece.t_end, limits, bounds)
+            moves.append(Motion((piece, *stop.pieces)))
+        safe = evader.safe_in_time(moves, t0, seen, 0.0)
+        assert not (safe & ~clear).any()
+        union = np.array([world.fast.valid(m.positions(t0, t0 + SWERVE_S, c.check_dt_s)[1])
+                          .all() for m in moves])
+        safe_total += int(safe.sum())
+        dropped_by_union += int((safe & ~union).sum())
+    world.fast.set_obstacles({})
+    assert safe_total >= 10 and dropped_by_union == safe_total
+
+
 def test_a_kick_never_throws_a_moving_arm_into_the_scene_faster_than_any_reaction(world,
                                                                                    limits):
     """Scripted kicks leave a way out: on arms heading into the scene 10-30 ms away, a kick

@@ -381,32 +381,30 @@ class Evader:
         constant acceleration drawn at random (each joint up to its limit; the acceleration
         steps at once) for :data:`SWERVE_S`, then a stop, that is safe in time with no margin
         (:meth:`safe_in_time`: the fast checker, sampled — not a certificate); else the first
-        judged whose swerve is fast-free and that stays within the limits (it buys time: its
-        stop runs into something later, the executive's monitor sees it coming); else None.
-        Drawn
-        :data:`SWERVE_CHUNK` at a time, the swerves alone checked first (their first
-        :data:`SWERVE_FIRST` samples, then the rest), then :data:`SWERVE_JUDGED` at a time
+        judged whose swerve alone is safe in time and that stays within the limits (it buys
+        time: its stop runs into something later, the executive's monitor sees it coming);
+        else None. Drawn :data:`SWERVE_CHUNK` at a time, the swerves alone checked first
+        (:meth:`_swerves_clear`), then :data:`SWERVE_JUDGED` at a time
         with their stops, until ``deadline`` (a ``time.perf_counter()`` time; one group at
         least). The first chunk is drawn around the acceleration that pushes the arm away
         from what it touches at ``q_hit`` (rad; :meth:`_away`). A kicked kitchen arm moving at
         1.4 rad/s 10 ms from a cabinet had none but such a swerve (1 of 256 random ones free
         at 1 ms steps)."""
         lim = self.limits
-        packs: list[PackedWorld] | None = None
+        packs = self.windows(t0, restore, 0.0)
         buys_time: Motion | None = None
         for c0 in range(0, SWERVE_TRIES, SWERVE_CHUNK):
             A = self.rng.uniform(-1.0, 1.0, (SWERVE_CHUNK, len(now.q))) * lim.acceleration
             if c0 == 0 and q_hit is not None:
                 A = self._away(q_hit, A)
             A = self._braking_at_limits(now, A)
-            A = A[self._swerves_clear(now, A, deadline)]
+            A = A[self._swerves_clear(now, t0, A, packs, deadline)]
             for k in range(0, len(A), SWERVE_JUDGED):
                 moves = []
                 for acc in A[k:k + SWERVE_JUDGED]:
                     piece = accelerating(now, t0, acc, SWERVE_S, lim)
                     stop = stop_from(piece.sample(SWERVE_S), piece.t_end, lim, self.bounds)
                     moves.append(Motion((piece, *stop.pieces)))
-                packs = packs if packs is not None else self.windows(t0, restore, 0.0)
                 safe = self.safe_in_time(moves, t0, restore, 0.0, windows=packs)
                 if safe.any():
                     return moves[int(np.argmax(safe))]
@@ -448,23 +446,26 @@ class Evader:
         scale = np.resize([0.0, 0.25, 0.5, 1.0], len(A))[:, None]
         return np.clip(push + scale * A, -acc, acc)
 
-    def _swerves_clear(self, now: State, A: Array, deadline: float | None
-                       ) -> NDArray[np.bool_]:
-        """Which of the swerves from ``now`` at accelerations A (N, K) rad/s² stay within
-        the limits and fast-free of what the fast checker holds for :data:`SWERVE_S` (every
-        check step; the first :data:`SWERVE_FIRST` samples of all first: they drop most);
-        none when ``deadline`` passes between the two."""
+    def _swerves_clear(self, now: State, t0: float, A: Array, packs: list[PackedWorld],
+                       deadline: float | None) -> NDArray[np.bool_]:
+        """Which of the swerves from ``now`` at clock time t0 (s) at accelerations A (N, K)
+        rad/s² stay within the limits and free of each window's predicted sweep ``packs``
+        (:meth:`windows`, no margin; the scene included) for :data:`SWERVE_S`, every check
+        step — the test :meth:`safe_in_time` then applies to the whole swerve and stop, on
+        the swerve alone (the first :data:`SWERVE_FIRST` samples of all first: they drop
+        most); none when ``deadline`` passes between the two. Against the whole horizon's
+        sweep at once (what the fast checker holds), every swerve of an arm beside the
+        forearm was dropped, where 256 of 256 random ones were safe in time."""
         dt, robot = self.settings.check_dt_s, self.world.robot
-        Q = accelerating_states(now, A, np.arange(dt, SWERVE_S + 1e-9, dt), self.limits)[0]
-        ok = np.ones(len(A), dtype=bool)
-        for part in (slice(0, SWERVE_FIRST), slice(SWERVE_FIRST, None)):
-            n = int(ok.sum())
-            if n and part.start and past(deadline):
+        us = np.arange(dt, SWERVE_S + 1e-9, dt)
+        Q = accelerating_states(now, A, us, self.limits)[0]
+        ok: NDArray[np.bool_] = np.asarray(robot.within_limits(Q.reshape(-1, len(now.q)))
+                                           .reshape(len(A), -1).all(axis=1), dtype=bool)
+        first = np.arange(len(us)) < SWERVE_FIRST
+        for pick in (first, ~first):
+            if ok.any() and not pick[0] and past(deadline):
                 return np.zeros(len(A), dtype=bool)
-            if n:
-                P = Q[ok, part].reshape(-1, len(now.q))
-                ok[ok] = (self.world.fast.valid(P) & robot.within_limits(P)).reshape(
-                    n, -1).all(axis=1)
+            self._drop_unsafe(ok, [(t0 + us, Q[i], pick) for i in range(len(A))], packs, t0)
         return ok
 
     def hold_short(self, motion: Motion, t0: float, t_hit: float,
