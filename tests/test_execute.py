@@ -27,6 +27,7 @@ from chekhov.execute.motion import (
 from chekhov.execute.obstacles import MovingObstacle, ObstacleTracks
 from chekhov.execute.script import EpisodeScript, GoalChange, Kick, make_script, start_and_goal
 from chekhov.execute.simulate import EpisodeRecord, SimConfig, shrunk_kick
+from chekhov.execute.swerve import Swerver
 from chekhov.robot.goal import Goal
 from chekhov.scene.model import Shape
 from chekhov.timing import TimingConfig, joint_limits, time_parameterize
@@ -264,11 +265,12 @@ def test_a_kicked_arm_about_to_hit_the_scene_swerves_exactly_free(world, limits)
     limits (finite differences) and at rest at its end."""
     robot = world.robot
     evader = _scene_evader(world, limits)
+    swerver = Swerver(evader)
     rng = np.random.default_rng(0)
     swerves = 0
     for _ in range(60):
         start = _heading_into_the_scene(world, limits, rng)
-        move = evader.immediate([], start, 0.0, {}, None)
+        move = swerver.immediate([], start, 0.0, {}, None)
         if move.pieces[0].kind != "swerve":
             assert move.pieces[0].kind == "brake"        # the stop, the last resort
             continue
@@ -288,13 +290,14 @@ def test_the_swerve_filter_keeps_every_swerve_that_is_safe_in_time(world, limits
     never stricter: moving arms around the elbow a ball flies at — every random swerve safe in
     time passes it, and some are (at least 10 of 30 x 32). Against the whole horizon's
     sweep at once, as the filter had it, each of those would have been dropped."""
-    from chekhov.execute.evade import SWERVE_S
     from chekhov.execute.motion import Motion, accelerating
     from chekhov.execute.obstacles import predicted_obstacles
+    from chekhov.execute.swerve import SWERVE_S
     q0, _, tracks, t0 = _ball_at_the_elbow(world, 0.06)
     c = CONFIG.executor
     bounds = Bounds(world.robot.lower, world.robot.upper)
     evader = _seeded_evader(world, tracks, limits)
+    swerver = Swerver(evader)
     seen = predicted_obstacles(tracks, t0, c.horizon_s, c.margin_m)
     packs = evader.windows(t0, seen, 0.0)
     world.fast.set_obstacles(seen)
@@ -305,7 +308,7 @@ def test_the_swerve_filter_keeps_every_swerve_that_is_safe_in_time(world, limits
         qd = d / np.abs(d).max() * rng.uniform(0.2, 1.0) * limits.velocity.min()
         now = State(q0 + rng.uniform(-0.1, 0.1, len(q0)), qd, np.zeros_like(q0))
         A = rng.uniform(-1.0, 1.0, (32, len(q0))) * limits.acceleration
-        clear = evader._swerves_clear(now, t0, A, packs, None)
+        clear = swerver._swerves_clear(now, t0, A, packs, None)
         moves = []
         for a in A:
             piece = accelerating(now, t0, a, SWERVE_S, limits)
@@ -360,7 +363,7 @@ def test_a_kicked_arm_whose_join_back_is_free_is_joined_back_at_once(world, limi
     rng = np.random.default_rng(3)
     robot = world.robot
     bounds = Bounds(robot.lower, robot.upper)
-    evader = _scene_evader(world, limits)
+    swerver = Swerver(_scene_evader(world, limits))
     joined = 0
     for _ in range(20):
         q = robot.sample_uniform(rng, 1)[0]
@@ -371,7 +374,7 @@ def test_a_kicked_arm_whose_join_back_is_free_is_joined_back_at_once(world, limi
         if back is None or not world.fast.valid(back.positions(0.0, back.t_end + 0.1,
                                                                0.01)[1]).all():
             continue
-        assert evader.immediate([back], start, 0.0, {}, None) is back
+        assert swerver.immediate([back], start, 0.0, {}, None) is back
         joined += 1
     assert joined >= 5
 

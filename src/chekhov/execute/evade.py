@@ -3,8 +3,9 @@
 (:meth:`Evader.safe_in_time`), and dodges (:meth:`Evader.dodge`) — Ruckig moves to nearby
 configurations: some pushed away from the predicted obstacles through the Jacobians of the
 arm's points nearest them, the rest random — of which the nearest safe one is taken — and,
-when neither a dodge nor a stop is safe, escapes (:meth:`Evader.escapes`); and what a kicked
-arm does until those are judged (:meth:`Evader.immediate`: a join back, the stop, or a swerve).
+when neither a dodge nor a stop is safe, escapes (:meth:`Evader.escapes`). What a kicked arm
+does until those are judged (a join back, the stop, or a swerve) is
+:mod:`chekhov.execute.swerve`'s, on top of this module.
 
 Units: s, rad, m.
 """
@@ -12,7 +13,6 @@ Units: s, rad, m.
 from __future__ import annotations
 
 import itertools
-import math
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -20,14 +20,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from chekhov.collision.distance_terms import TrajectoryDistances
 from chekhov.collision.packed import PackedWorld
 from chekhov.execute.motion import (
     Bounds,
     Motion,
     State,
-    accelerating,
-    accelerating_states,
     brake_along,
     ruckig_piece,
     stop_from,
@@ -80,23 +77,6 @@ COARSE = 4
 STOP_APART_RAD = 0.1
 """rad: an arm that would stop farther than this from where it is (any joint) gets dodge
 targets around its stop too."""
-IMMEDIATE_LOOK_S = 0.1
-"""s, how far past a kicked arm's join back (or stop) :meth:`Evader.immediate` looks: a
-step overran its tick by up to ~0.1 s."""
-SWERVE_TRIES = 512
-"""Random constant accelerations :meth:`Evader.swerve` tries at most."""
-SWERVE_CHUNK = 16
-"""Swerves tried at a time."""
-SWERVE_S = 0.1
-"""s, how long a swerve keeps its acceleration before it stops."""
-SWERVE_FIRST = 3
-"""How many of a swerve's first samples (every check step) are checked first, for all."""
-AWAY_MARGIN_M = 0.03
-"""m: the fast model's pairs closer than this at a swerve's contact push it away."""
-AWAY_PAIRS = 8
-"""How many of those closest pairs push it."""
-SWERVE_JUDGED = 4
-"""Swerves (with their stops) judged in time at once."""
 ESCAPE_TRIES = 64
 """Random constant accelerations :meth:`Evader.escapes` tries."""
 ESCAPE_S = 0.3
@@ -142,7 +122,6 @@ class Evader:
         self._windows: dict[tuple[float, float], list[PackedWorld]] = {}
         self._windows_of: object = None
         self._cut: _CutSearch | None = None
-        self._distances = TrajectoryDistances(world.fast)
 
     def windows(self, t0: float, restore: Obstacles, margin_m: float | None = None
                 ) -> list[PackedWorld]:
@@ -192,10 +171,10 @@ class Evader:
         for coarse in (True, False):
             picked = [(ts, Q, (np.arange(len(ts)) % COARSE == 0) == coarse)
                       for ts, Q in samples]
-            self._drop_unsafe(ok, picked, packs, t0)
+            self.drop_unsafe(ok, picked, packs, t0)
         return ok
 
-    def _drop_unsafe(self, ok: NDArray[np.bool_], picked: list[tuple[Array, Array, NDArray[
+    def drop_unsafe(self, ok: NDArray[np.bool_], picked: list[tuple[Array, Array, NDArray[
             np.bool_]]], packs: list[PackedWorld], t0: float) -> None:
         """Set ``ok[i]`` False for each motion i still ok whose configurations picked (times
         (N,) s, positions (N, K) rad, which of them (N,)) collide with their window's sweep
@@ -344,129 +323,6 @@ class Evader:
                     moves.append(Motion((piece, *stop.pieces)))
             safe = self.safe_in_time(moves, t0, restore, 0.0)
             yield from (m for m, ok in zip(moves, safe, strict=True) if ok)
-
-    def immediate(self, backs: list[Motion], now: State, t0: float, restore: Obstacles,
-                  deadline: float | None) -> Motion:
-        """What a control loop commands a kicked arm (``now`` at clock time t0, s) until the
-        executive's exact checks are done: the first of the joins back ``backs`` and the stop
-        whose positions (every check step, to :data:`IMMEDIATE_LOOK_S` past the join) stay
-        within the joint limits and that the fast checker calls free of the scene and
-        ``restore``, the predicted obstacles it holds (microseconds, not the exact checks'
-        milliseconds); else a swerve (:meth:`swerve`, until ``deadline``); else, of those
-        within the limits, the one whose first fast alarm comes latest. A join back straight
-        into a cabinet had been commanded for the two ticks a kicked step overran."""
-        stop = stop_from(now, t0, self.limits, self.bounds)
-        best, best_t, q_hit = stop, -math.inf, now.q
-        for m in [*backs, stop]:
-            ts, Q = m.positions(t0, min(m.t_end, m.pieces[0].t_end + IMMEDIATE_LOOK_S),
-                                self.settings.check_dt_s)
-            if m is not stop and not self.world.robot.within_limits(Q).all():
-                continue
-            ok = self.world.fast.valid(Q)
-            if ok.all():
-                return m
-            i = int(np.argmin(ok))
-            if m is stop:
-                q_hit = Q[i]
-            if float(ts[i]) > best_t:
-                best, best_t = m, float(ts[i])
-        swerve = self.swerve(now, t0, restore, deadline, q_hit=q_hit)
-        return swerve if swerve is not None else best
-
-    def swerve(self, now: State, t0: float, restore: Obstacles,
-               deadline: float | None = None, *, q_hit: Array | None = None
-               ) -> Motion | None:
-        """An arm ``now`` (at clock time t0, s) whose every smooth move (join, stop, escape)
-        is in contact within a tick or two: the first of up to :data:`SWERVE_TRIES` moves at a
-        constant acceleration drawn at random (each joint up to its limit; the acceleration
-        steps at once) for :data:`SWERVE_S`, then a stop, that is safe in time with no margin
-        (:meth:`safe_in_time`: the fast checker, sampled — not a certificate); else the first
-        judged whose swerve alone is safe in time and that stays within the limits (it buys
-        time: its stop runs into something later, the executive's monitor sees it coming);
-        else None. Drawn :data:`SWERVE_CHUNK` at a time, the swerves alone checked first
-        (:meth:`_swerves_clear`), then :data:`SWERVE_JUDGED` at a time
-        with their stops, until ``deadline`` (a ``time.perf_counter()`` time; one group at
-        least). The first chunk is drawn around the acceleration that pushes the arm away
-        from what it touches at ``q_hit`` (rad; :meth:`_away`). A kicked kitchen arm moving at
-        1.4 rad/s 10 ms from a cabinet had none but such a swerve (1 of 256 random ones free
-        at 1 ms steps)."""
-        lim = self.limits
-        packs = self.windows(t0, restore, 0.0)
-        buys_time: Motion | None = None
-        for c0 in range(0, SWERVE_TRIES, SWERVE_CHUNK):
-            A = self.rng.uniform(-1.0, 1.0, (SWERVE_CHUNK, len(now.q))) * lim.acceleration
-            if c0 == 0 and q_hit is not None:
-                A = self._away(q_hit, A)
-            A = self._braking_at_limits(now, A)
-            A = A[self._swerves_clear(now, t0, A, packs, deadline)]
-            for k in range(0, len(A), SWERVE_JUDGED):
-                moves = []
-                for acc in A[k:k + SWERVE_JUDGED]:
-                    piece = accelerating(now, t0, acc, SWERVE_S, lim)
-                    stop = stop_from(piece.sample(SWERVE_S), piece.t_end, lim, self.bounds)
-                    moves.append(Motion((piece, *stop.pieces)))
-                safe = self.safe_in_time(moves, t0, restore, 0.0, windows=packs)
-                if safe.any():
-                    return moves[int(np.argmax(safe))]
-                buys_time = buys_time or next((m for m in moves if self._within_limits(m)), None)
-                if past(deadline):
-                    return buys_time
-            if past(deadline):
-                break
-        return buys_time
-
-    def _braking_at_limits(self, now: State, A: Array) -> Array:
-        """The swerve accelerations A (N, K) rad/s² from ``now``, each joint that would
-        otherwise stop past a position limit after its swerve braking at full deceleration
-        instead (a kicked arm rushing at a limit has no room to swerve on that joint)."""
-        acc, bounds = self.limits.acceleration, self.bounds
-        q, v, _ = accelerating_states(now, A, np.array([SWERVE_S]), self.limits)
-        rest = q[:, 0] + v[:, 0] * np.abs(v[:, 0]) / (2 * acc)
-        past_limit = (rest > bounds.upper) | (rest < bounds.lower)
-        return np.where(past_limit, -np.sign(now.qd) * acc, A)
-
-    def _within_limits(self, motion: Motion) -> bool:
-        _, Q = motion.positions(motion.t_start, motion.t_end, self.settings.check_dt_s)
-        return bool(self.world.robot.within_limits(Q).all())
-
-    def _away(self, q_hit: Array, A: Array) -> Array:
-        """Accelerations (N, K) rad/s² around the one that pushes the arm away from what it
-        touches at ``q_hit`` (K,) rad: the fast model's closest pairs there (within
-        :data:`AWAY_MARGIN_M`), their signed-distance gradients weighted by depth, scaled to
-        put one joint at its limit — plus the noise ``A`` (N, K) (random accelerations)
-        times 0, 1/4, 1/2 and 1 in turn, clipped to the limits. ``A`` itself when nothing is
-        that close."""
-        dist, grad = self._distances.waypoints(q_hit[None], AWAY_MARGIN_M, AWAY_PAIRS)
-        w = np.clip(AWAY_MARGIN_M - dist[0], 0.0, None)
-        g = (w[:, None] * grad[0]).sum(axis=0)
-        acc = self.limits.acceleration
-        if not np.abs(g).max(initial=0.0) > 0:
-            return A
-        push = g / np.abs(g / acc).max()
-        scale = np.resize([0.0, 0.25, 0.5, 1.0], len(A))[:, None]
-        return np.clip(push + scale * A, -acc, acc)
-
-    def _swerves_clear(self, now: State, t0: float, A: Array, packs: list[PackedWorld],
-                       deadline: float | None) -> NDArray[np.bool_]:
-        """Which of the swerves from ``now`` at clock time t0 (s) at accelerations A (N, K)
-        rad/s² stay within the limits and free of each window's predicted sweep ``packs``
-        (:meth:`windows`, no margin; the scene included) for :data:`SWERVE_S`, every check
-        step — the test :meth:`safe_in_time` then applies to the whole swerve and stop, on
-        the swerve alone (the first :data:`SWERVE_FIRST` samples of all first: they drop
-        most); none when ``deadline`` passes between the two. Against the whole horizon's
-        sweep at once (what the fast checker holds), every swerve of an arm beside the
-        forearm was dropped, where 256 of 256 random ones were safe in time."""
-        dt, robot = self.settings.check_dt_s, self.world.robot
-        us = np.arange(dt, SWERVE_S + 1e-9, dt)
-        Q = accelerating_states(now, A, us, self.limits)[0]
-        ok: NDArray[np.bool_] = np.asarray(robot.within_limits(Q.reshape(-1, len(now.q)))
-                                           .reshape(len(A), -1).all(axis=1), dtype=bool)
-        first = np.arange(len(us)) < SWERVE_FIRST
-        for pick in (first, ~first):
-            if ok.any() and not pick[0] and past(deadline):
-                return np.zeros(len(A), dtype=bool)
-            self._drop_unsafe(ok, [(t0 + us, Q[i], pick) for i in range(len(A))], packs, t0)
-        return ok
 
     def hold_short(self, motion: Motion, t0: float, t_hit: float,
                    restore: Obstacles) -> Motion | None:

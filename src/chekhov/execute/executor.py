@@ -40,6 +40,7 @@ from chekhov.execute.motion import (
     trajectory_motion,
 )
 from chekhov.execute.obstacles import Obstacles, ObstacleTracks, predicted_obstacles
+from chekhov.execute.swerve import Swerver
 from chekhov.execute.worker import PlanReply, PlanRequest, Worker
 from chekhov.planners.certify import goal_error
 from chekhov.planners.query import make_query
@@ -70,8 +71,8 @@ MOVING_ASIDE = ("dodge", "swerve")
 
 IMMEDIATE_SHARE = 0.7
 """The share of the control tick (``control_dt_s / wall_scale`` of wall time from the step's
-start) by which a kicked arm's immediate motion is chosen (:meth:`Evader.immediate
-<chekhov.execute.evade.Evader.immediate>`: its swerve search stops then; a chunk begun ends,
+start) by which a kicked arm's immediate motion is chosen (:meth:`Swerver.immediate
+<chekhov.execute.swerve.Swerver.immediate>`: its swerve search stops then; a chunk begun ends,
 ~2 ms), so that the loop has it for the next tick."""
 
 
@@ -113,6 +114,7 @@ class Executor:
         self.evader = Evader(world, self.tracks, EvadeSettings(c.horizon_s, c.margin_m,
                                                                c.check_dt_s),
                              self.limits, self.bounds)
+        self.swerver = Swerver(self.evader)
 
     # --- the tick ---------------------------------------------------------------------
     def step(self, obs: Observation) -> Command:
@@ -206,7 +208,7 @@ class Executor:
         backs = self._joins_back(start, t)
         w = time.perf_counter()
         tick_end = self._wall0 + IMMEDIATE_SHARE * self.config.control_dt_s / self.wall_scale
-        immediate = self.evader.immediate(backs, start, t, self._seen, tick_end)
+        immediate = self.swerver.immediate(backs, start, t, self._seen, tick_end)
         swerve = immediate.pieces[0].kind == "swerve"
         self.counters.swerves += swerve
         self.immediate_motion = self.motion.then(immediate)

@@ -271,7 +271,7 @@ def accelerating(start: State, t0: float, acc: Array, duration_s: float, limits:
     """From ``start`` at clock time t0 (s), each joint at the constant acceleration ``acc``
     (K,) rad/s² (within the limits) for ``duration_s`` s — until its velocity limit, then at
     that velocity. Its acceleration steps at t0 (no jerk limit: the swerve of a kicked arm
-    :meth:`~chekhov.execute.evade.Evader.swerve`, when every smooth move is in contact
+    :meth:`~chekhov.execute.swerve.Swerver.swerve`, when every smooth move is in contact
     within a tick or two)."""
     a = np.asarray(acc, dtype=float)
 
