@@ -694,6 +694,39 @@ def test_an_arm_at_rest_beside_a_still_obstacle_gets_its_plan(world, planner, li
     assert float(np.abs(q - q0).max()) > 0.05          # it left
 
 
+def test_an_obstacle_seen_once_may_be_anywhere_its_speed_bound_takes_it():
+    """A ball seen in one sensor frame (its velocity unknown) is predicted, with a speed
+    bound, as one ball where it was seen, grown by the margin and by how far that speed takes
+    it by the horizon's end; without a bound, as standing still. Once a second frame gives
+    its velocity it is copies along its line, and a point behind it is no longer covered."""
+    from chekhov.execute.obstacles import predicted_obstacles
+    ball = Shape("sphere", (0.05,))
+    T = np.eye(4)
+    T[:3, 3] = (0.5, 0.0, 1.0)
+    tracks = ObstacleTracks()
+    tracks.update({"ball": (ball, T)}, 1.0)
+
+    def covers(pred, point):
+        return any(np.linalg.norm(point - P[:3, 3]) <= shape.size[0]
+                   for shape, P in pred.values())
+    bounded = predicted_obstacles(tracks, 1.1, 0.5, 0.04, speed_bound_m_s=1.0)
+    assert len(bounded) == 1
+    radius = 0.05 + 0.04 + 1.0 * (1.1 + 0.5 - 1.0)
+    for d in np.eye(3):
+        assert covers(bounded, T[:3, 3] + (radius - 1e-9) * d)
+        assert covers(bounded, T[:3, 3] - (radius - 1e-9) * d)
+    assert not covers(bounded, T[:3, 3] + (radius + 1e-6) * np.eye(3)[0])
+    still = predicted_obstacles(tracks, 1.1, 0.5, 0.04)
+    assert not covers(still, T[:3, 3] + 0.1 * np.eye(3)[0])
+    T2 = T.copy()
+    T2[0, 3] += 1.0 / 30                      # moving along +x at 1 m/s
+    tracks.update({"ball": (ball, T2)}, 1.0 + 1.0 / 30)
+    moving = predicted_obstacles(tracks, 1.1, 0.5, 0.04, speed_bound_m_s=1.0)
+    assert len(moving) > 1
+    assert covers(moving, T2[:3, 3] + 0.5 * np.eye(3)[0])     # ahead, within the horizon
+    assert not covers(moving, T2[:3, 3] - 0.3 * np.eye(3)[0])  # behind it
+
+
 def _ball_at_the_elbow(world, radius):
     """The first task case's start q0, a ball of ``radius`` (m) flying at its elbow at 0.5 m/s,
     and the tracks of two sensor frames of it by t0 = 0.5 s: (q0, ball, tracks, t0)."""
@@ -856,15 +889,17 @@ def test_an_obstacle_on_the_goal_is_answered_at_once_by_holding_short_of_it(worl
     the goal meanwhile (no free IK), so the executive holds short of the ball — the motion it
     commands changes on the tick after the frame, not when the conflict is near — waits
     there, and reaches the goal once the ball is gone. Judged by the exact checker against
-    the ball's true pose."""
-    plain = run_one(world, planner, _script(world, 0), 20.0, CONFIG)
+    the ball's true pose. (With no speed bound on obstacles seen once: with one, the ball's
+    first frame makes it anywhere within 0.6 m, and the answer is a stop.)"""
+    config = replace(CONFIG, executor=replace(CONFIG.executor, obstacle_speed_m_s=0.0))
+    plain = run_one(world, planner, _script(world, 0), 20.0, config)
     first = _script(world, 0)
     p = first.goal.T_world_ee[:3, 3]
     t_in = 0.3 * plain.t_reached
     ball = MovingObstacle("ball", Shape("sphere", (0.06,)), np.eye(3), p,
                           p + np.array([1e-9, 0.0, 0.0]), t_in, 1e-9 / 2.0)
     script = _script(world, 0, obstacles=(ball,))
-    rec = run_one(world, planner, script, t_in + 2.0 + plain.t_reached + 4.0, CONFIG)
+    rec = run_one(world, planner, script, t_in + 2.0 + plain.t_reached + 4.0, config)
     check = evaluate_episode(world, rec, limits, 0.15)
     assert not check.collision and check.limit_violations == 0
     seen = [r for r in rec.reactions if r.kind == "obstacle"]
@@ -898,7 +933,7 @@ def test_a_dodge_gone_unsafe_with_no_other_stops_when_stopping_is_safe(world, pl
     assert piece is not None
     ex.motion = Motion((piece,))
     t = 0.1
-    for stamp in (t - 1 / 30, t - 0.04):
+    for stamp in (t - 0.04 - 1 / 30, t - 0.04):     # two frames: its velocity known
         ex.tracks.update(obstacles_at((ball,), stamp), stamp)
     ex._seen = predicted_obstacles(ex.tracks, t, c.horizon_s, c.margin_m)
     ex.evader.dodge = lambda *args, **kw: None      # no other dodge to be had

@@ -103,11 +103,13 @@ class _CutSearch:
 class EvadeSettings:
     """What an :class:`Evader` needs of the executive's configuration: ``horizon_s`` (s) of
     prediction, ``margin_m`` (m) of inflation, ``check_dt_s`` (s) between checked
-    configurations."""
+    configurations, ``obstacle_speed_m_s`` (m/s) the speed bound of an obstacle seen once
+    (:func:`~chekhov.execute.obstacles.predicted_obstacles`)."""
 
     horizon_s: float
     margin_m: float
     check_dt_s: float
+    obstacle_speed_m_s: float = 0.0
 
 
 class Evader:
@@ -141,7 +143,9 @@ class Evader:
         try:
             edges = window_edges(c.horizon_s)
             for a, b in itertools.pairwise(edges):
-                fast.set_obstacles(predicted_obstacles(self.tracks, t0 + a, b - a, margin))
+                fast.set_obstacles(predicted_obstacles(
+                    self.tracks, t0 + a, b - a, margin,
+                    speed_bound_m_s=c.obstacle_speed_m_s))
                 packs.append(fast.packed)
         finally:
             fast.set_obstacles(restore)

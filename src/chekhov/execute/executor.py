@@ -111,9 +111,8 @@ class Executor:
         self._resuming = False
         self._wall0 = time.perf_counter()
         c = self.config
-        self.evader = Evader(world, self.tracks, EvadeSettings(c.horizon_s, c.margin_m,
-                                                               c.check_dt_s),
-                             self.limits, self.bounds)
+        settings = EvadeSettings(c.horizon_s, c.margin_m, c.check_dt_s, c.obstacle_speed_m_s)
+        self.evader = Evader(world, self.tracks, settings, self.limits, self.bounds)
         self.swerver = Swerver(self.evader)
 
     # --- the tick ---------------------------------------------------------------------
@@ -279,7 +278,8 @@ class Executor:
         assert self.motion is not None
         c = self.config
         self._search_again = False
-        self._seen = predicted_obstacles(self.tracks, t, c.horizon_s, c.margin_m)
+        self._seen = predicted_obstacles(self.tracks, t, c.horizon_s, c.margin_m,
+                                         speed_bound_m_s=c.obstacle_speed_m_s)
         self.world.fast.set_obstacles(self._seen)
         t_hit = self.checks.first_conflict(self.motion, t, self._seen)
         if t_hit is None:

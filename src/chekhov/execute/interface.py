@@ -29,6 +29,12 @@ class ExecutorConfig:
         max_budget_s: s, the budget after failed replans (doubling each time).
         horizon_s: s, how far ahead the obstacles' motion is predicted.
         margin_m: m, how much the obstacles are inflated when planning and monitoring.
+        obstacle_speed_m_s: m/s, the obstacles' speed bound: one seen in a single sensor
+            frame so far (its velocity unknown; the next frame gives it) is predicted to be
+            anywhere that speed takes it (0: taken as standing still until then). A person's
+            arm first seen at rest was planned around as a standing obstacle; the next
+            frame, 33 ms on, showed it at 1 m/s with the arm already in its sweep
+            (tabletop_container 19, collided in 3 of 4 react runs).
         reaction_lead_s: s, how far ahead of its tick a reaction (a hold, brake or dodge, or
             a plan joined on) starts (whole ticks, at least one): the motion commanded until
             then stands, so the control loop goes on commanding it while the reaction is
@@ -73,6 +79,7 @@ class ExecutorConfig:
     max_budget_s: float = 0.64
     horizon_s: float = 0.6
     margin_m: float = 0.04
+    obstacle_speed_m_s: float = 1.0
     reaction_lead_s: float = 0.01
     search_budget_s: float | None = 0.015
     kick_tolerance_rad: float = 1e-3

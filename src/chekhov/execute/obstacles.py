@@ -93,13 +93,15 @@ def inner_radius(shape: Shape) -> float:
 
 @dataclass
 class Track:
-    """What the sensor saw of one obstacle: its shape and its last two poses with their
-    times."""
+    """What the sensor saw of one obstacle: its shape, its last pose and that pose's time
+    (s), and its velocity (m/s) from its last two poses — ``velocity_known`` False while it
+    has been seen once (the velocity then reads 0 but may be anything)."""
 
     shape: Shape
     T_last: Array
     t_last: float
     velocity: Array = field(default_factory=lambda: np.zeros(3))
+    velocity_known: bool = False
 
 
 class ObstacleTracks:
@@ -116,9 +118,10 @@ class ObstacleTracks:
             T = np.asarray(T, dtype=float)
             old = self.tracks.get(name)
             v = np.zeros(3)
+            known = old is not None and stamp > old.t_last
             if old is not None and stamp > old.t_last:
                 v = (T[:3, 3] - old.T_last[:3, 3]) / (stamp - old.t_last)
-            new[name] = Track(shape, T, stamp, v)
+            new[name] = Track(shape, T, stamp, v, known)
         self.tracks = new
 
     def pose(self, name: str, t: float) -> Array:
@@ -130,12 +133,20 @@ class ObstacleTracks:
 
 
 def predicted_obstacles(tracks: ObstacleTracks, t0: float, horizon_s: float, margin_m: float,
-                        max_copies: int = 24) -> dict[str, tuple[Shape, Array]]:
+                        max_copies: int = 24, *, speed_bound_m_s: float = 0.0
+                        ) -> dict[str, tuple[Shape, Array]]:
     """Each tracked obstacle, inflated by ``margin_m`` (m), at its predicted poses from t0 to
     t0 + horizon_s (s): copies at most one inner radius apart along the predicted line (at
-    most ``max_copies``; the margin grows when the line is longer than they cover)."""
+    most ``max_copies``; the margin grows when the line is longer than they cover). An
+    obstacle seen once (its velocity not known yet) may be moving at up to
+    ``speed_bound_m_s`` (m/s) in any direction: with a bound, it is one copy where it was
+    seen, inflated by the margin plus how far that speed takes it by t0 + horizon_s."""
     out: dict[str, tuple[Shape, Array]] = {}
     for name, tr in tracks.tracks.items():
+        if not tr.velocity_known and speed_bound_m_s > 0:
+            reach = speed_bound_m_s * max(t0 + horizon_s - tr.t_last, 0.0)
+            out[f"{name}#0"] = (inflate(tr.shape, margin_m + reach), tr.T_last.copy())
+            continue
         T0 = tracks.pose(name, t0)
         travel = float(np.linalg.norm(tr.velocity)) * horizon_s
         r = inner_radius(tr.shape) + margin_m
