@@ -119,7 +119,7 @@ class ObstacleTracks:
             old = self.tracks.get(name)
             v = np.zeros(3)
             known = old is not None and stamp > old.t_last
-            if old is not None and stamp > old.t_last:
+            if old is not None and known:
                 v = (T[:3, 3] - old.T_last[:3, 3]) / (stamp - old.t_last)
             new[name] = Track(shape, T, stamp, v, known)
         self.tracks = new
