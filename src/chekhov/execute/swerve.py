@@ -168,9 +168,9 @@ class Swerver:
         :meth:`Evader.safe_in_time <chekhov.execute.evade.Evader.safe_in_time>` then applies
         to the whole swerve and stop, on the swerve alone (the first :data:`SWERVE_FIRST`
         samples of all first: they drop most); none when ``deadline`` passes between the
-        two. Against the whole horizon's
-        sweep at once (what the fast checker holds), every swerve of an arm beside the
-        forearm was dropped, where 256 of 256 random ones were safe in time."""
+        two. Against the whole horizon's sweep at once (what the fast checker holds), every
+        swerve of an arm beside the forearm was dropped, where 256 of 256 random ones were
+        safe in time."""
         ev = self.evader
         dt, robot = ev.settings.check_dt_s, ev.world.robot
         us = np.arange(dt, SWERVE_S + 1e-9, dt)
