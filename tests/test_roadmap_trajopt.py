@@ -279,7 +279,7 @@ def test_a_pose_goal_the_spheres_cannot_clear_is_optimised_towards_the_seed_end(
 
     monkeypatch.setattr(RoadmapTrajOpt, "_trajopt_run", spy)
     margin = planner.config.trajopt.min_clearance_m
-    cases = generate_cases(world, 24, seed=5, family="tasks")
+    cases = generate_cases(world, 48, seed=5, family="tasks")
     skipped = 0
     for i in range(len(cases)):
         goal = cases.goal(i)
