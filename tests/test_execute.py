@@ -308,7 +308,7 @@ def test_the_swerve_filter_keeps_every_swerve_that_is_safe_in_time(world, limits
         qd = d / np.abs(d).max() * rng.uniform(0.2, 1.0) * limits.velocity.min()
         now = State(q0 + rng.uniform(-0.1, 0.1, len(q0)), qd, np.zeros_like(q0))
         A = rng.uniform(-1.0, 1.0, (32, len(q0))) * limits.acceleration
-        clear = swerver._swerves_clear(now, t0, A, packs, None)
+        clear = swerver._swerves_clear(now, t0, A, packs)
         moves = []
         for a in A:
             piece = accelerating(now, t0, a, SWERVE_S, limits)
@@ -1165,3 +1165,29 @@ def test_an_exact_check_past_its_budget_answers_not_free(world, planner):
         ex = Executor(world, InlineWorker(world, planner, c.timing), goal, c)
         assert ex.checks.exact_free(Q, 4, {}) is free
         assert ex.counters.undecided_checks == (0 if free else 1)
+
+
+def test_a_search_budget_starts_no_unit_that_would_end_past_its_deadline(monkeypatch):
+    import chekhov.execute.swerve as swerve_mod
+
+    clock = [0.0]
+    monkeypatch.setattr(swerve_mod.time, "perf_counter", lambda: clock[0])
+    expected: dict[str, float] = {}
+    budget = swerve_mod._Budget(0.010, expected)
+    starts = []
+    while budget.room("judge"):
+        starts.append(clock[0])
+        with budget.unit("judge"):
+            clock[0] += 0.003            # each unit takes 3 ms
+    assert starts == pytest.approx([0.0, 0.003, 0.006])
+    assert clock[0] <= 0.010             # the fourth would have ended at 12 ms: not begun
+    # the next search knows what a unit takes: 2 ms left are not enough to begin one
+    clock[0] = 0.0
+    assert not swerve_mod._Budget(0.002, expected).room("judge")
+    assert swerve_mod._Budget(0.004, expected).room("judge")
+    assert swerve_mod._Budget(None, expected).room("judge")
+    assert swerve_mod._Budget(0.002, expected).room("draw")   # another kind: not yet timed
+    # a quick unit halves what a slow one taught, no more
+    with swerve_mod._Budget(None, expected).unit("judge"):
+        clock[0] += 0.0005
+    assert expected["judge"] == pytest.approx(0.0015)

@@ -72,8 +72,8 @@ MOVING_ASIDE = ("dodge", "swerve")
 IMMEDIATE_SHARE = 0.7
 """The share of the control tick (``control_dt_s / wall_scale`` of wall time from the step's
 start) by which a kicked arm's immediate motion is chosen (:meth:`Swerver.immediate
-<chekhov.execute.swerve.Swerver.immediate>`: its swerve search stops then; a chunk begun ends,
-~2 ms), so that the loop has it for the next tick."""
+<chekhov.execute.swerve.Swerver.immediate>`: its swerve search does not begin a unit of work
+that would end after it), so that the loop has it for the next tick."""
 
 
 class Executor:

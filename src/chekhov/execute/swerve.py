@@ -10,13 +10,16 @@ Units: s, rad, m.
 from __future__ import annotations
 
 import math
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 import numpy as np
 from numpy.typing import NDArray
 
 from chekhov.collision.distance_terms import TrajectoryDistances
 from chekhov.collision.packed import PackedWorld
-from chekhov.execute.evade import Evader, past
+from chekhov.execute.evade import Evader
 from chekhov.execute.motion import (
     Motion,
     State,
@@ -47,6 +50,32 @@ SWERVE_JUDGED = 4
 """Swerves (with their stops) judged in time at once."""
 
 
+class _Budget:
+    """Units of work against a deadline (a ``time.perf_counter()`` time; None: none): a unit
+    of a kind starts only when it would end before the deadline if it takes as long as that
+    kind's expected time (``expected``, s by kind: the longest lately, updated in place, so
+    an owner keeps it from one search to the next) — a search stops *before* the unit that
+    would overrun its deadline, not after it. A kicked Panda's swerve search had overrun a
+    7 ms deadline by up to 6 ms: a whole filter or judgment begun just before it."""
+
+    def __init__(self, deadline: float | None, expected: dict[str, float]) -> None:
+        self.deadline = deadline
+        self.expected = expected
+
+    def room(self, kind: str) -> bool:
+        """Whether a unit of ``kind`` may start now."""
+        return self.deadline is None or \
+            time.perf_counter() + self.expected.get(kind, 0.0) < self.deadline
+
+    @contextmanager
+    def unit(self, kind: str) -> Iterator[None]:
+        """Time one unit of ``kind``: its expected time becomes the longer of this one and
+        half the one before (a slow unit is remembered, a while)."""
+        t = time.perf_counter()
+        yield
+        self.expected[kind] = max(time.perf_counter() - t, 0.5 * self.expected.get(kind, 0.0))
+
+
 class Swerver:
     """A kicked arm's immediate motion and swerves, judged with ``evader``'s settings, limits
     and predicted windows, drawn from its random generator (one stream with its dodges)."""
@@ -54,6 +83,7 @@ class Swerver:
     def __init__(self, evader: Evader) -> None:
         self.evader = evader
         self._distances = TrajectoryDistances(evader.world.fast)
+        self._unit_s: dict[str, float] = {}   # s: the swerve search's expected unit times
 
     def immediate(self, backs: list[Motion], now: State, t0: float, restore: Obstacles,
                   deadline: float | None) -> Motion:
@@ -95,37 +125,54 @@ class Swerver:
         checker, sampled — not a certificate); else the first judged whose swerve alone is
         safe in time and that stays within the limits (it buys time: its stop runs into
         something later, the executive's monitor sees it coming); else None. Drawn
-        :data:`SWERVE_CHUNK` at a time, the swerves alone checked first
-        (:meth:`_swerves_clear`), then :data:`SWERVE_JUDGED` at a time with their stops,
-        until ``deadline`` (a ``time.perf_counter()`` time; one group at least). The first
+        :data:`SWERVE_CHUNK` at a time, the swerves' first samples checked first
+        (:meth:`_swerves_clear`), then :data:`SWERVE_JUDGED` at a time the rest of them and
+        with their stops (:meth:`_judged`), until ``deadline`` (a ``time.perf_counter()``
+        time): a draw or a judgment starts only when it would end before it, taking as long
+        as such units lately took (:class:`_Budget`). The first
         chunk is drawn around the acceleration that pushes the arm away from what it touches
         at ``q_hit`` (rad; :meth:`_away`). A kicked kitchen arm moving at 1.4 rad/s 10 ms from
         a cabinet had none but such a swerve (1 of 256 random ones free at 1 ms steps)."""
         ev = self.evader
-        lim = ev.limits
         packs = ev.windows(t0, restore, 0.0)
+        budget = _Budget(deadline, self._unit_s)
         buys_time: Motion | None = None
         for c0 in range(0, SWERVE_TRIES, SWERVE_CHUNK):
-            A = ev.rng.uniform(-1.0, 1.0, (SWERVE_CHUNK, len(now.q))) * lim.acceleration
-            if c0 == 0 and q_hit is not None:
-                A = self._away(q_hit, A)
-            A = self._braking_at_limits(now, A)
-            A = A[self._swerves_clear(now, t0, A, packs, deadline)]
-            for k in range(0, len(A), SWERVE_JUDGED):
-                moves = []
-                for acc in A[k:k + SWERVE_JUDGED]:
-                    piece = accelerating(now, t0, acc, SWERVE_S, lim)
-                    stop = stop_from(piece.sample(SWERVE_S), piece.t_end, lim, ev.bounds)
-                    moves.append(Motion((piece, *stop.pieces)))
-                safe = ev.safe_in_time(moves, t0, restore, 0.0, windows=packs)
-                if safe.any():
-                    return moves[int(np.argmax(safe))]
-                buys_time = buys_time or next((m for m in moves if self._within_limits(m)), None)
-                if past(deadline):
-                    return buys_time
-            if past(deadline):
+            if not budget.room("draw"):
                 break
+            with budget.unit("draw"):
+                A = ev.rng.uniform(-1.0, 1.0, (SWERVE_CHUNK, len(now.q))) * ev.limits.acceleration
+                if c0 == 0 and q_hit is not None:
+                    A = self._away(q_hit, A)
+                A = self._braking_at_limits(now, A)
+                A = A[self._swerves_clear(now, t0, A, packs, rest=False)]
+            for k in range(0, len(A), SWERVE_JUDGED):
+                if not budget.room("judge"):
+                    return buys_time
+                with budget.unit("judge"):
+                    moves = self._judged(now, t0, A[k:k + SWERVE_JUDGED], packs, restore)
+                safe = [m for m, ok in moves if ok]
+                if safe:
+                    return safe[0]
+                buys_time = buys_time or next((m for m, _ in moves if self._within_limits(m)),
+                                              None)
         return buys_time
+
+    def _judged(self, now: State, t0: float, A: Array, packs: list[PackedWorld],
+                restore: Obstacles) -> list[tuple[Motion, bool]]:
+        """The swerves from ``now`` (clock time t0, s) at accelerations A (N, K) rad/s² whose
+        first samples passed :meth:`_swerves_clear`, those whose rest passes too, each with
+        its stop, and whether it is safe in time with no margin."""
+        ev = self.evader
+        moves = []
+        for acc in A[self._swerves_clear(now, t0, A, packs, first=False)]:
+            piece = accelerating(now, t0, acc, SWERVE_S, ev.limits)
+            stop = stop_from(piece.sample(SWERVE_S), piece.t_end, ev.limits, ev.bounds)
+            moves.append(Motion((piece, *stop.pieces)))
+        if not moves:
+            return []
+        safe = ev.safe_in_time(moves, t0, restore, 0.0, windows=packs)
+        return list(zip(moves, (bool(x) for x in safe), strict=True))
 
     def _braking_at_limits(self, now: State, A: Array) -> Array:
         """The swerve accelerations A (N, K) rad/s² from ``now``, each joint that would
@@ -159,27 +206,27 @@ class Swerver:
         scale = np.resize([0.0, 0.25, 0.5, 1.0], len(A))[:, None]
         return np.clip(push + scale * A, -acc, acc)
 
-    def _swerves_clear(self, now: State, t0: float, A: Array, packs: list[PackedWorld],
-                       deadline: float | None) -> NDArray[np.bool_]:
+    def _swerves_clear(self, now: State, t0: float, A: Array, packs: list[PackedWorld], *,
+                       first: bool = True, rest: bool = True) -> NDArray[np.bool_]:
         """Which of the swerves from ``now`` at clock time t0 (s) at accelerations A (N, K)
         rad/s² stay within the limits and free of each window's predicted sweep ``packs``
         (:meth:`Evader.windows <chekhov.execute.evade.Evader.windows>`, no margin; the scene
         included) for :data:`SWERVE_S`, every check step — the test
         :meth:`Evader.safe_in_time <chekhov.execute.evade.Evader.safe_in_time>` then applies
-        to the whole swerve and stop, on the swerve alone (the first :data:`SWERVE_FIRST`
-        samples of all first: they drop most); none when ``deadline`` passes between the
-        two. Against the whole horizon's sweep at once (what the fast checker holds), every
+        to the whole swerve and stop, on the swerve alone: with ``first``, the limits and the
+        first :data:`SWERVE_FIRST` samples (they drop most); with ``rest``, the other samples.
+        Against the whole horizon's sweep at once (what the fast checker holds), every
         swerve of an arm beside the forearm was dropped, where 256 of 256 random ones were
         safe in time."""
         ev = self.evader
         dt, robot = ev.settings.check_dt_s, ev.world.robot
         us = np.arange(dt, SWERVE_S + 1e-9, dt)
         Q = accelerating_states(now, A, us, ev.limits)[0]
-        ok: NDArray[np.bool_] = np.asarray(robot.within_limits(Q.reshape(-1, len(now.q)))
-                                           .reshape(len(A), -1).all(axis=1), dtype=bool)
-        first = np.arange(len(us)) < SWERVE_FIRST
-        for pick in (first, ~first):
-            if ok.any() and not pick[0] and past(deadline):
-                return np.zeros(len(A), dtype=bool)
-            ev.drop_unsafe(ok, [(t0 + us, Q[i], pick) for i in range(len(A))], packs, t0)
+        ok = np.ones(len(A), dtype=bool)
+        if first:
+            ok &= robot.within_limits(Q.reshape(-1, len(now.q))).reshape(len(A), -1).all(axis=1)
+        is_first = np.arange(len(us)) < SWERVE_FIRST
+        for pick, on in ((is_first, first), (~is_first, rest)):
+            if on:
+                ev.drop_unsafe(ok, [(t0 + us, Q[i], pick) for i in range(len(A))], packs, t0)
         return ok
