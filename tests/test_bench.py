@@ -19,7 +19,7 @@ from chekhov.bench.progress import ProgressBar
 from chekhov.bench.registry import PLANNER_NAMES, expand_planner_names
 from chekhov.bench.report import write_report
 from chekhov.bench.runner import run_benchmark
-from chekhov.bench.summary import compute_stats, summary_json
+from chekhov.bench.summary import PlannerStats, compute_stats, speed_targets, summary_json
 from chekhov.cli import main
 from chekhov.errors import ChekhovError
 from chekhov.roadmap.config import RoadmapConfig
@@ -280,3 +280,31 @@ def test_fallback_to_seed_is_read_from_the_stages_and_solutions():
                   Stage.FALLBACK).fell_back_to_seed is False          # straight-line TrajOpt
     assert result(Stage.ROUTES, Stage.ROADMAP_SEED, Stage.SHORTCUT, Stage.ROUTES,
                   Stage.STRAIGHT_LINE, Stage.OPTIMISE).fell_back_to_seed is True
+
+
+def test_the_issues_speed_targets_are_judged_on_the_roadmap_planners_own_figures():
+    def stats(**kw):
+        base = dict(scene="s", planner="Roadmap+TrajOpt", time_limit_s=1.0, cases=200,
+                    failure_rate=0.0, mean_runtime_s=0.008, median_runtime_s=0.008,
+                    p95_runtime_s=0.025, mean_path_length_rad=1.0,
+                    median_path_length_rad=1.0, collision_rate=0.0,
+                    median_first_solution_s=0.0015, p95_first_solution_s=0.009)
+        return PlannerStats(**{**base, **kw})
+
+    met = speed_targets(stats(), {"TrajOpt": 1.08, "RRTConnect": 0.5})
+    assert all(met.values()) and len(met) == 6
+    # each figure just past its bound fails its own target and no other
+    for field_, value, key in [
+            ("failure_rate", 0.006, "failure_rate_at_most_half_pct"),
+            ("median_runtime_s", 0.0101, "median_runtime_at_most_10ms"),
+            ("p95_runtime_s", 0.031, "p95_runtime_at_most_30ms"),
+            ("median_first_solution_s", 0.0021, "median_first_solution_at_most_2ms"),
+            ("p95_first_solution_s", 0.011, "p95_first_solution_at_most_10ms")]:
+        got = speed_targets(stats(**{field_: value}), {"TrajOpt": 1.0})
+        assert {k for k, v in got.items() if not v} == {key}
+    longer = speed_targets(stats(), {"TrajOpt": 1.11, "RRTConnect": float("nan")})
+    assert {k for k, v in longer.items() if not v} == {
+        "path_length_within_10pct_of_shortest_common_cases"}
+    # no first answer measured (nan) is not a met target
+    assert not speed_targets(stats(median_first_solution_s=float("nan")), {})[
+        "median_first_solution_at_most_2ms"]
