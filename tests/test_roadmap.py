@@ -462,6 +462,43 @@ def test_a_connection_is_kept_until_the_obstacles_change(world, seeder, monkeypa
     assert late >= 1 and len(checks) > late
 
 
+def test_goal_configurations_are_kept_until_the_obstacles_change(world, seeder, monkeypatch):
+    """The goal resolver's answers asked again in the same world come from memory, equal to
+    what it computes (a fresh seeder asks it: a different mechanism); an obstacle added or
+    removed makes it ask again; an answer whose deadline had passed is not kept; a kept
+    answer cannot be changed in place."""
+    import time
+
+    asked: list[int] = []
+    real = seeder.goal_ik.resolve
+    monkeypatch.setattr(seeder.goal_ik, "resolve",
+                        lambda *a, **k: asked.append(1) or real(*a, **k))
+    seeder._goal_sets.clear()
+    q0, q1 = _free_configurations(world, 2, seed=21)
+    T = world.robot.compute_ee_pose(q1)
+    Q, why = seeder.goal_configurations(T, near=q0)
+    n = len(asked)
+    assert n == 2 and len(Q) >= 1 and why == ""          # roadmap-seeded, and from near
+    again, _ = seeder.goal_configurations(T, near=q0)
+    assert len(asked) == n and np.array_equal(again, Q)
+    fresh, _ = RoadmapSeeder(world, seeder.roadmap).goal_configurations(T, near=q0)
+    assert np.array_equal(fresh, Q)
+    seeded, _ = seeder.goal_configurations(T, near=q0, from_near=False)   # kept part
+    assert len(asked) == n and not seeded.flags.writeable
+    far = np.eye(4)
+    far[:3, 3] = (0.0, 0.0, -5.0)
+    for change in (lambda: world.add_obstacle("far", Shape("sphere", (0.01,)), far),
+                   lambda: world.remove_obstacle("far")):
+        change()
+        asked.clear()
+        assert np.array_equal(seeder.goal_configurations(T, near=q0)[0], Q) and len(asked) == 2
+    T2 = world.robot.compute_ee_pose(q0)
+    asked.clear()
+    seeder.goal_configurations(T2, near=q1, deadline=time.perf_counter() - 1.0)
+    seeder.goal_configurations(T2, near=q1)
+    assert len(asked) == 4                                 # the late answers were not kept
+
+
 def test_goal_last_resorts_wait_for_every_goals_cheap_connection(world, seeder, monkeypatch):
     """The goal configurations' cheap connections are all tried before any last resort (a
     tree of up to tree_time_s): a first answer takes the second goal that connects directly

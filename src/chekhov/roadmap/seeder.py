@@ -23,7 +23,7 @@ from chekhov.roadmap.repair import RepairResult, TreeRepair
 from chekhov.roadmap.search import astar, path_edges, warm_up
 from chekhov.roadmap.validity import INVALID, RoadmapValidity
 from chekhov.robot.goal import Goal
-from chekhov.robot.goal_ik import GoalIKConfig, GoalResolver, distinct_rows
+from chekhov.robot.goal_ik import GoalConfigurations, GoalIKConfig, GoalResolver, distinct_rows
 from chekhov.transforms import rotation_angle
 from chekhov.world import World
 
@@ -40,6 +40,9 @@ GOAL_NODE_CANDIDATES = 8
 """Nodes nearest a pose goal (position, then rotation) looked at for goal nodes."""
 EXITS_KEPT = 16
 """Ends whose exits (:meth:`RoadmapSeeder._way_out`) are remembered, at most."""
+GOAL_SETS_KEPT = 16
+"""Goal resolver answers remembered by :meth:`RoadmapSeeder.goal_configurations`, at most: a
+query asks the same ones for its first answer, its routes and its straight line."""
 
 NEAR_IK_SOLUTIONS = 6
 """IK solutions of a pose goal sought from the configuration it is asked ``near`` (and a random
@@ -123,6 +126,7 @@ class RoadmapSeeder:
                                    P, distal)
         warm_up()
         self._exits: dict[tuple[bytes, int], Array] = {}
+        self._goal_sets: dict[tuple[object, ...], GoalConfigurations] = {}
         self.tree_repair = TreeRepair(world, roadmap, self.validity, self._route_nodes,
                                       self.resolution, cfg.repair)
         self.goal_ik.warmup()
@@ -148,19 +152,36 @@ class RoadmapSeeder:
         # the 4·n_seeds nearest end-effector positions, ranked by position (m) + 0.2 · angle
         seeds = self.roadmap.nodes[nearest_poses(self._ee_position, self._ee_rotation, T,
                                                  4 * n_seeds, n_seeds)]
-        found = self.goal_ik.resolve(Goal.pose(T), n=n, seeds=seeds, near=near,
-                                     deadline=deadline)
+        found = self._resolve(T, n, seeds, near, deadline)
         if near is None or not from_near:
             return found.Q, found.reason
         # the solutions the IK finds from near itself and a random batch (as straight-line
         # TrajOpt's goal): the roadmap-seeded ones lie by the nodes nearest the pose, often
         # on a branch of the arm far from near
-        local = self.goal_ik.resolve(Goal.pose(T), n=NEAR_IK_SOLUTIONS, near=near,
-                                     deadline=deadline)
+        local = self._resolve(T, NEAR_IK_SOLUTIONS, None, near, deadline)
         Q = np.vstack([found.Q, local.Q])
         Q = distinct_rows(Q[np.argsort(np.linalg.norm(Q - near, axis=1), kind="stable")],
                           self.goal_ik.config.min_separation, n)
         return Q, "" if len(Q) else found.reason
+
+    def _resolve(self, T: Array, n: int, seeds: Array | None, near: Array | None,
+                 deadline: float) -> GoalConfigurations:
+        """The goal resolver's answer for pose T, remembered while the obstacles stay: it is
+        deterministic (its own seeded random rounds), so the same question in the same world
+        has the same answer — unless ``deadline`` cut it short, which is not kept."""
+        key = (T.tobytes(), n, None if seeds is None else seeds.tobytes(),
+               None if near is None else np.asarray(near, dtype=float).tobytes(),
+               self.world.fast.obstacles_version)
+        if key in self._goal_sets:
+            return self._goal_sets[key]
+        found = self.goal_ik.resolve(Goal.pose(T), n=n, seeds=seeds, near=near,
+                                     deadline=deadline)
+        if time.perf_counter() < deadline:   # no round was skipped
+            if len(self._goal_sets) >= GOAL_SETS_KEPT:
+                self._goal_sets.clear()
+            found.Q.setflags(write=False)
+            self._goal_sets[key] = found
+        return found
 
     def goal_nodes(self, goal: Goal, near: Array | None = None) -> IntArray:
         """Roadmap nodes that are configurations of the pose ``goal``: their end effector within
