@@ -41,7 +41,8 @@ class PlanResult:
         path: waypoints (T, K), rad, first row the start; None on failure.
         status: why the call ended (:class:`PlanStatus`; a string given is converted, an
             unknown one is a ValueError).
-        time_s: wall time of ``plan`` (s).
+        time_s: wall time of ``plan`` up to its certified answer (s); the timing of the
+            answer that follows (``trajectory``) is ``info["time_parameterize_s"]``.
         timing_s: breakdown of ``time_s`` by phase (s), e.g. {"ik": .., "seed": .., "optimise": ..}.
         seed: the seed path (T', K) an optimising planner started from, when there was one.
         info: anything else worth reporting (iterations, flags such as "fallback_to_seed").
