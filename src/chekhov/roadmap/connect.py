@@ -30,6 +30,7 @@ from scipy.spatial import cKDTree
 
 from chekhov.roadmap.config import SeederConfig
 from chekhov.roadmap.graph import Roadmap
+from chekhov.roadmap.memo import ObstacleMemo
 from chekhov.roadmap.nearest import NearestNodes
 from chekhov.roadmap.validity import RoadmapValidity
 from chekhov.world import World
@@ -72,8 +73,7 @@ class Connector:
         self.nearest = NearestNodes(roadmap.nodes)
         self.rng = np.random.default_rng(config.seed)
         # connect()'s answers in the current world: (q's bytes, last_resorts) → connections
-        self._cache: dict[tuple[bytes, bool], list[Connection]] = {}
-        self._cache_version = -1
+        self._kept: ObstacleMemo[list[Connection]] = ObstacleMemo(world.fast, _CACHE_SIZE)
 
     def _motions(self, Q0: Array, Q1: Array, deadline: float = math.inf
                  ) -> NDArray[np.bool_]:
@@ -117,15 +117,12 @@ class Connector:
         before its deadline is kept until the obstacles change (``obstacles_version``): an
         anytime query connects its start and first goal again for more routes, and a
         pick-and-place start recurs."""
-        version = self.world.fast.obstacles_version
-        if version != self._cache_version:
-            self._cache, self._cache_version = {}, version
         key = (np.ascontiguousarray(q, dtype=np.float64).tobytes(), last_resorts)
-        if key in self._cache:
-            return list(self._cache[key])
-        found = self._connect(q, last_resorts, deadline)
-        if time.perf_counter() < deadline and len(self._cache) < _CACHE_SIZE:
-            self._cache[key] = found
+        found = self._kept.get(key)
+        if found is None:
+            found = self._connect(q, last_resorts, deadline)
+            if time.perf_counter() < deadline:
+                self._kept.put(key, found)
         return list(found)
 
     def _connect(self, q: Array, last_resorts: bool, deadline: float) -> list[Connection]:

@@ -18,6 +18,7 @@ from chekhov.roadmap.connect import Connection, Connector
 from chekhov.roadmap.errors import RoadmapMismatchError
 from chekhov.roadmap.graph import Roadmap, edges_certified
 from chekhov.roadmap.kpaths import KShortestPaths
+from chekhov.roadmap.memo import ObstacleMemo
 from chekhov.roadmap.nearest import NearestNodes, nearest_poses
 from chekhov.roadmap.repair import RepairResult, TreeRepair
 from chekhov.roadmap.search import astar, path_edges, warm_up
@@ -125,8 +126,9 @@ class RoadmapSeeder:
         self.connector = Connector(world, roadmap, self.validity, self.config, self.resolution,
                                    P, distal)
         warm_up()
-        self._exits: dict[tuple[bytes, int], Array] = {}
-        self._goal_sets: dict[tuple[object, ...], GoalConfigurations] = {}
+        self._exits: ObstacleMemo[Array] = ObstacleMemo(world.fast, EXITS_KEPT)
+        self._goal_sets: ObstacleMemo[GoalConfigurations] = ObstacleMemo(world.fast,
+                                                                         GOAL_SETS_KEPT)
         self.tree_repair = TreeRepair(world, roadmap, self.validity, self._route_nodes,
                                       self.resolution, cfg.repair)
         self.goal_ik.warmup()
@@ -147,40 +149,41 @@ class RoadmapSeeder:
         from ``near`` itself and a random batch (:data:`NEAR_IK_SOLUTIONS`); (empty, reason)
         on failure."""
         n = self.config.n_goal_ik if n is None else n
-        n_seeds = max(self.config.ik_seeds, n)
         T = np.asarray(T_world_ee, dtype=float)
-        # the 4·n_seeds nearest end-effector positions, ranked by position (m) + 0.2 · angle
-        seeds = self.roadmap.nodes[nearest_poses(self._ee_position, self._ee_rotation, T,
-                                                 4 * n_seeds, n_seeds)]
-        found = self._resolve(T, n, seeds, near, deadline)
+        found = self._resolve(T, n, near, deadline, seeded=True)
         if near is None or not from_near:
             return found.Q, found.reason
         # the solutions the IK finds from near itself and a random batch (as straight-line
         # TrajOpt's goal): the roadmap-seeded ones lie by the nodes nearest the pose, often
         # on a branch of the arm far from near
-        local = self._resolve(T, NEAR_IK_SOLUTIONS, None, near, deadline)
+        local = self._resolve(T, NEAR_IK_SOLUTIONS, near, deadline, seeded=False)
         Q = np.vstack([found.Q, local.Q])
         Q = distinct_rows(Q[np.argsort(np.linalg.norm(Q - near, axis=1), kind="stable")],
                           self.goal_ik.config.min_separation, n)
         return Q, "" if len(Q) else found.reason
 
-    def _resolve(self, T: Array, n: int, seeds: Array | None, near: Array | None,
-                 deadline: float) -> GoalConfigurations:
-        """The goal resolver's answer for pose T, remembered while the obstacles stay: it is
-        deterministic (its own seeded random rounds), so the same question in the same world
-        has the same answer — unless ``deadline`` cut it short, which is not kept."""
-        key = (T.tobytes(), n, None if seeds is None else seeds.tobytes(),
-               None if near is None else np.asarray(near, dtype=float).tobytes(),
-               self.world.fast.obstacles_version)
-        if key in self._goal_sets:
-            return self._goal_sets[key]
+    def _resolve(self, T: Array, n: int, near: Array | None, deadline: float,
+                 seeded: bool) -> GoalConfigurations:
+        """The goal resolver's answer for pose T — ``seeded`` from the roadmap nodes whose
+        end-effector poses are nearest — remembered while the obstacles stay: it is
+        deterministic (its own seeded random rounds; the seeds a function of T and n), so
+        the same question in the same world has the same answer, unless ``deadline`` cut it
+        short (not kept)."""
+        key = (T.tobytes(), n, seeded,
+               None if near is None else np.asarray(near, dtype=float).tobytes())
+        kept = self._goal_sets.get(key)
+        if kept is not None:
+            return kept
+        seeds = None
+        if seeded:   # the 4·n_seeds nearest end-effector positions, by position (m) + 0.2 · angle
+            n_seeds = max(self.config.ik_seeds, n)
+            seeds = self.roadmap.nodes[nearest_poses(self._ee_position, self._ee_rotation, T,
+                                                     4 * n_seeds, n_seeds)]
         found = self.goal_ik.resolve(Goal.pose(T), n=n, seeds=seeds, near=near,
                                      deadline=deadline)
         if time.perf_counter() < deadline:   # no round was skipped
-            if len(self._goal_sets) >= GOAL_SETS_KEPT:
-                self._goal_sets.clear()
             found.Q.setflags(write=False)
-            self._goal_sets[key] = found
+            self._goal_sets.put(key, found)
         return found
 
     def goal_nodes(self, goal: Goal, near: Array | None = None) -> IntArray:
@@ -326,17 +329,15 @@ class RoadmapSeeder:
             return None, f"invalid_{end}", f"{end} outside the limits"
         if w.fast.is_valid(q):
             return q, "", ""
-        key = (q.tobytes(), w.fast.obstacles_version)   # asked again for more routes
-        if key not in self._exits:
+        out = self._exits.get(q.tobytes())   # asked again for more routes
+        if out is None:
             if not w.exact.is_valid(q):
                 return None, f"invalid_{end}", f"{end} in collision"
             out = exact_exit(w.fast, w.exact, q, w.robot.lower, w.robot.upper, deadline)
             if out is None:
                 return self._no_exit(end, deadline)
-            if len(self._exits) >= EXITS_KEPT:
-                self._exits.clear()
-            self._exits[key] = out
-        return self._exits[key], "", ""
+            self._exits.put(q.tobytes(), out)
+        return out, "", ""
 
     @staticmethod
     def _no_exit(end: str, deadline: float) -> tuple[None, str, str]:
