@@ -23,12 +23,15 @@ alone it looked at 1 sample in 4.5 and in 2.9 (575 and 670 visits a path, ~2 µs
 each configuration's own distances to the joint axes (``motion_bounds.clear_for``) 1 in 8.5
 and in 4.9 (365 and 432; shelf_boxes 1759 → 1134, kitchen 1854 → 1142, panda_table_shelf
 789 → 469). This machine's timings varied by up to 2x from run to run here: compare old and
-new alternating, several times. Tried and not kept: carrying the certificates from one
-segment to the next (more visits: they then run out one at a time instead of together at
-each segment's start) and, with it, renewing those about to run out whenever one
-configuration is looked at (26% fewer visits, the same time: each visit then renews more);
-one walk call for the whole path instead of 8 segments a call (tabletop 5-9% faster,
-panda_cage no faster).
+new alternating, several times. Tried and not kept for these long segments: carrying the
+certificates from one segment to the next (more visits: they then run out one at a time
+instead of together at each segment's start; 2026-11-29, with runs of segments as the timed
+arcs now use them (``dense_path.run_end``) but uncapped: visits 971 → 1814 a path on
+shelf_boxes, 232 → 716 on tabletop_container, the walk 4-11% slower) and, with it,
+renewing those about to run out whenever one configuration is looked at (26% fewer visits,
+the same time: each visit then renews more); one walk call for the whole path instead of 8
+segments a call (tabletop 5-9% faster, panda_cage no faster; since 2026-11-29 a call takes
+64, ``path_check.CHUNK_SEGMENTS``, for the timed arcs' sake).
 """
 
 from __future__ import annotations

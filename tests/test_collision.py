@@ -362,8 +362,11 @@ def test_dense_path_check_near_contact_equals_every_configuration(world_of, scen
     """Paths that graze the scene, millimetres from contact all along (where a group's
     spheres touch and its certificate comes from GJK on the covered geometry), with and
     without the certification's margins: the dense walk's first colliding index is the one
-    checking every configuration of densify(path, 100) gives — also when the walk is cut
-    into calls of a few configurations, each resumed where the last stopped."""
+    checking every configuration of densify(path, substeps) gives — also when the walk is cut
+    into calls of a few configurations, each resumed where the last stopped. Every other
+    path is an arc of short uneven segments at 6 substeps, as a timed trajectory's knots,
+    which the walk takes in runs of several segments (``dense_path.run_end``), its
+    certificates held across the knots."""
     from chekhov.collision import dense_path, validity
     from chekhov.collision.exact import densify
 
@@ -373,7 +376,8 @@ def test_dense_path_check_near_contact_equals_every_configuration(world_of, scen
     G = len(fast.packed.groups.radius)
     margins = [(np.zeros(0), np.zeros(0)), (np.full(G, 0.002), np.full(G, 0.001))]
     seen: dict[bool, int] = {True: 0, False: 0}
-    paths = resumed = 0
+    paths = resumed = joined = 0
+    span = np.empty(w.robot.dof)
     while paths < 30:
         q0 = w.robot.sample_uniform(rng, 1)[0]
         v = rng.normal(size=w.robot.dof)
@@ -389,26 +393,38 @@ def test_dense_path_check_near_contact_equals_every_configuration(world_of, scen
             lo, hi = (mid, hi) if fast.is_valid(mid) else (lo, mid)
         side = rng.normal(size=w.robot.dof)
         side -= side @ v / (v @ v) * v   # along the surface, roughly
-        P = lo + np.linspace(0.0, 1.0, 6)[:, None] * (0.08 * side / np.linalg.norm(side))
+        side *= 0.08 / np.linalg.norm(side)
+        if paths % 2:   # an arc: 12 knots 0.8-1.2 apart in u, bent off the chord by ~1 cm
+            u = np.cumsum(np.r_[0.0, rng.uniform(0.8, 1.2, 11)])
+            u /= u[-1]
+            bend = rng.normal(size=w.robot.dof)
+            bend *= 0.02 / np.linalg.norm(bend)
+            P = lo + u[:, None] * side + (4.0 * u * (1.0 - u))[:, None] * bend
+            substeps = 6
+            joined += dense_path.run_end(P, 0, len(P) - 1, substeps + 1, span) > 1
+        else:
+            P = lo + np.linspace(0.0, 1.0, 6)[:, None] * side
+            substeps = 100
         paths += 1
         for pad, grow in margins:
             packed = fast.packed if len(pad) == 0 else dense_path.with_margin(
                 fast.packed, pad, grow)
-            v_all = ~validity.valid_batch(densify(P, 100), packed)
+            v_all = ~validity.valid_batch(densify(P, substeps), packed)
             ref = int(np.flatnonzero(v_all)[0]) if v_all.any() else -1
-            got, resume = dense_path.first_dense_collision(P, 100, 0, dense_path.NO_BUDGET,
+            got, resume = dense_path.first_dense_collision(P, substeps, 0, dense_path.NO_BUDGET,
                                                            pad, grow, fast.packed)
             assert got == ref and resume == -1, (paths, len(pad))
             resume, calls = 0, 0
             while resume >= 0:
-                got, resume = dense_path.first_dense_collision(P, 100, resume, 3, pad, grow,
-                                                               fast.packed)
+                got, resume = dense_path.first_dense_collision(P, substeps, resume, 3, pad,
+                                                               grow, fast.packed)
                 calls += 1
             assert got == ref, (paths, len(pad), calls)
             resumed += calls > 1
             seen[ref < 0] += 1
     assert seen[True] >= 5 and seen[False] >= 5, seen
     assert resumed >= 10, resumed
+    assert joined >= 10, joined
 
 
 def test_repacked_obstacles_equal_packing_them_afresh(world_of):

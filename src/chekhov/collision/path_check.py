@@ -68,11 +68,16 @@ from chekhov.paths import resample_path
 
 Array = NDArray[np.float64]
 
-CHUNK_SEGMENTS = 8
-"""Segments screened per fast-checker call (each sets up its work arrays and margins),
-measured in one process against 2: the first answer's median 9.3 → 7.6 ms (kitchen tasks),
-5.5 → 4.7 (panda_cage), 3.5 → 3.2 (tabletop_pole); the exact check of a timed answer's arcs
-21.6 → 16.0, 12.4 → 9.1, 13.7 → 8.5 ms."""
+CHUNK_SEGMENTS = 64
+"""Segments screened per fast-checker call (each sets up its work arrays and margins, and
+its certificates start afresh; near the deadline the calls are cut shorter by their visit
+budget). 8 against 2, in one process: the first answer's median 9.3 → 7.6 ms (kitchen
+tasks), 5.5 → 4.7 (panda_cage), 3.5 → 3.2 (tabletop_pole); the exact check of a timed
+answer's arcs 21.6 → 16.0, 12.4 → 9.1, 13.7 → 8.5 ms. 64 against 8, with the walk's runs of
+short segments (``dense_path.run_end``), alternating in one process on the arcs of 40 task
+cases' timed answers: 0.287 → 0.209 ms a run of arcs (shelf_boxes), 0.89 → 0.79
+(panda_cage); the first answers' certification (``benchmarks/certify_walk.py``) 2-7% less
+on the mean (shelf_boxes, panda_cage, kitchen, twice each)."""
 EXACT_WINDOW = 4
 """Configurations coal checks from an alarm before the fast walk resumes (and the deadline is
 looked at again)."""
