@@ -89,9 +89,9 @@ class WalkWork(NamedTuple):
     substep in swc_at (G,) int64 (per group); mark (K,) bool, Rw (2, 3, 3), pw (2, 3),
     cw (2, 3) work space; budget (2,) int64: the configurations :func:`_walk` may still look
     at (those not covered by certificates) and, when it ran out, the next one it would have
-    looked at (-1: it did not run out); dq (K,) rad, each joint's move in one substep, and
-    curve (G, 2) m, the second-order terms of ``motion_bounds.clear_for`` for a group's centre and
-    for its spheres."""
+    looked at (-1: it did not run out); dq (K,) rad, the most each joint turns in one substep
+    of the run, and curve (G, 2) m, the second-order terms of ``motion_bounds.clear_for`` for
+    a group's centre and for its spheres."""
 
     until: np.ndarray
     puntil: np.ndarray
