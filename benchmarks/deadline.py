@@ -31,6 +31,8 @@ import numpy as np
 from chekhov import World, builtin_scenes, load_or_build_roadmap
 from chekhov.bench.cases import cached_cases
 from chekhov.bench.registry import PlannerSpec
+from chekhov.errors import ChekhovError
+from chekhov.planners.registry import canonical_planner_name
 
 RETURN_SLACK_MS = 0.1
 
@@ -73,10 +75,18 @@ def bench_scene(scene: str, planners: list[str], n: int, limits_ms: list[float]
     return out
 
 
+def planner_name(text: str) -> str:
+    """The registry name of ``text``, as an argparse type (an unknown name: exit status 2)."""
+    try:
+        return canonical_planner_name(text)
+    except ChekhovError as e:
+        raise argparse.ArgumentTypeError(str(e)) from e
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenes", nargs="*", default=list(builtin_scenes()))
-    ap.add_argument("--planners", nargs="*", default=["Roadmap+TrajOpt"])
+    ap.add_argument("--planners", nargs="*", default=["Roadmap+TrajOpt"], type=planner_name)
     ap.add_argument("--cases", type=int, default=100)
     ap.add_argument("--limits-ms", nargs="*", type=float, default=[5.0, 10.0, 20.0, 50.0])
     ap.add_argument("--json", action="store_true", help="JSON lines only")
