@@ -287,10 +287,12 @@ class _Coal:
             # given ``steps`` (M, K) rad instead, when there are)
             bound = (np.abs(np.diff(P, axis=0)) @ W.T).max(axis=0) / (substeps + 1) \
                 if steps is None else (np.abs(steps) @ W.T).max(axis=0)
-            self.L = np.maximum(bound, 1e-12)[row]
-            self.mu = _round_up(0.5 * self.L) + MARGIN_SLACK
+            # per distinct weight row first (the kitchen: 1493 pairs, 63 rows), then per pair
+            L = np.maximum(bound, 1e-12)
+            mu = _round_up(0.5 * L) + MARGIN_SLACK
+            self.L, self.mu = L[row], mu[row]
             # the screening test's margins: a pass certifies the pair for LOOKAHEAD samples
-            self.look = self.mu + LOOKAHEAD * self.L
+            self.look = (mu + LOOKAHEAD * L)[row]
             self.until = np.full(len(row), -1, dtype=np.int64)
 
     @staticmethod
