@@ -72,11 +72,8 @@ from chekhov.collision.kernels import (
 )
 from chekhov.collision.motion_bounds import clear_for, curvature
 from chekhov.collision.self_table import table_gap
-from chekhov.collision.validity import collisions, make_work
+from chekhov.collision.validity import NO_BUDGET, collisions, make_work
 from chekhov.robot.chain_kinematics import chain_fk_arrays
-
-NO_BUDGET = 2 ** 62
-"""``visits`` for a walk without a budget."""
 
 
 class WalkWork(NamedTuple):
@@ -507,53 +504,6 @@ def run_end(P, t0, last, n, span):  # pragma: no cover - compiled
             span[i] = max(span[i], abs(P[t + 1, i] - P[t, i]))
         t += 1
     return t
-
-
-@njit(cache=True, nogil=True)
-def motions_valid_dense(Q0, Q1, resolution, first, first_m, visits, world
-                        ):  # pragma: no cover - compiled
-    """(out, done, resume): whether each straight motion Q0[i] → Q1[i] is free at the
-    interior steps k / n, n = ceil(length / resolution): the same configurations and answer
-    as :func:`validity.motions_valid`, visited in order with clearance certificates instead of
-    in bisection order. End points give certificates but are not checked. From motion
-    ``first``'s step ``first_m`` on (0: the motion's start), looking at ``visits``
-    configurations at most (as :func:`first_dense_collision`): out[first:done] are decided;
-    when done < N, motion ``done`` is to be resumed at step ``resume``."""
-    K = Q0.shape[1]
-    work = make_work(K, world)
-    ww = make_walk_work(K, world)
-    ww.budget[0] = visits
-    probes = np.empty((3, K))
-    hits = np.empty(3, dtype=np.bool_)
-    seg = np.empty((2, K))
-    out = np.zeros(Q0.shape[0], dtype=np.bool_)
-    for i in range(first, Q0.shape[0]):
-        m_first = first_m if i == first else 0
-        if ww.budget[0] <= 0:
-            return out, i, m_first
-        d = 0.0
-        for a in range(K):
-            d += (Q1[i, a] - Q0[i, a]) ** 2
-        n = int(np.ceil(np.sqrt(d) / resolution))
-        if n <= 1:
-            out[i] = True
-            continue
-        if m_first == 0:
-            m = 0  # the first levels of the bisection order catch most collisions early
-            for k in (n // 2, n // 4, (3 * n) // 4):
-                if 0 < k < n:
-                    for a in range(K):
-                        probes[m, a] = Q0[i, a] + (k / n) * (Q1[i, a] - Q0[i, a])
-                    m += 1
-            if collisions(probes[:m], world, work, hits, True) != NONE:
-                continue
-        seg[0] = Q0[i]
-        seg[1] = Q1[i]
-        free = _walk(seg, 0, 1, n, m_first, n - 1, False, world, work, ww) < 0
-        if ww.budget[1] >= 0:   # ran out within the motion
-            return out, i, ww.budget[1]
-        out[i] = free
-    return out, Q0.shape[0], 0
 
 
 VISIT_COST_S = 5e-5

@@ -225,10 +225,10 @@ class FastChecker:
     def motions_valid(self, Q0: Array, Q1: Array, resolution: float = 0.02,
                       deadline: float = math.inf) -> BoolArray:
         """Whether each straight motion Q0[i] → Q1[i] is free at every ``resolution`` (rad)
-        step of joint-space distance; end points are not checked. With a ``deadline`` (a
-        ``time.perf_counter()`` value, s) the compiled calls are budgeted
-        (``dense_path.visit_budget``) and the clock is looked at between them: a motion not
-        decided by then counts as blocked."""
+        step of joint-space distance, visited in bisection order; end points are not checked.
+        With a ``deadline`` (a ``time.perf_counter()`` value, s) the compiled calls are
+        budgeted (``validity.check_budget``) and the clock is looked at between them: a
+        motion not decided by then counts as blocked."""
         Q0, Q1 = self._as_batch(Q0), self._as_batch(Q1)
         out = np.zeros(len(Q0), dtype=bool)
         done = resume = calls = 0
@@ -237,8 +237,8 @@ class FastChecker:
             if calls > 0 and left <= 0.0:
                 break
             part, done, resume = self.run_kernel(
-                dense_path.motions_valid_dense, Q0, Q1, float(resolution), done, resume,
-                dense_path.visit_budget(max(left, 0.0)))
+                validity.motions_valid, Q0, Q1, float(resolution), done, resume,
+                validity.check_budget(max(left, 0.0)))
             out |= part
             calls += 1
         return out
