@@ -250,7 +250,7 @@ def test_budgeted_motion_checks_resumed_decide_the_same(world_of):
     assert 0 < ref.mean() < 1
     out, done, resume, calls = np.zeros(len(A), dtype=bool), 0, 0, 0
     while done < len(A):
-        part, done, resume = validity.motions_valid(A, B, 0.02, done, resume, 5,
+        part, done, resume = validity.motions_valid(A, B, 0.02, done, resume, 5, False,
                                                     w.fast.packed)
         out |= part
         calls += 1
@@ -258,6 +258,13 @@ def test_budgeted_motion_checks_resumed_decide_the_same(world_of):
     assert calls > len(A)   # motions were cut and resumed
     late = w.fast.motions_valid(A, B, 0.02, deadline=0.0)
     assert not (late & ~ref).any() and late.sum() < ref.sum()
+    # the first free motion, from every place in the list and when none is left
+    free = np.flatnonzero(ref)
+    for k in range(0, len(A), 7):
+        later = free[free >= k]
+        want = int(later[0] - k) if len(later) else None
+        assert w.fast.first_free_motion(A[k:], B[k:], 0.02) == want
+    assert w.fast.first_free_motion(A[~ref], B[~ref], 0.02) is None
 
 
 def test_group_order_and_coarse_grids_do_not_change_decisions(world_of, rng):

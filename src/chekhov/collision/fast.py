@@ -229,16 +229,29 @@ class FastChecker:
         With a ``deadline`` (a ``time.perf_counter()`` value, s) the compiled calls are
         budgeted (``validity.check_budget``) and the clock is looked at between them: a
         motion not decided by then counts as blocked."""
+        return self._motions(Q0, Q1, resolution, deadline, False)
+
+    def first_free_motion(self, Q0: Array, Q1: Array, resolution: float = 0.02,
+                          deadline: float = math.inf) -> int | None:
+        """Index of the first motion Q0[i] → Q1[i] (candidates in order of preference) that
+        :meth:`motions_valid` calls free, or None — also when ``deadline`` passes first. The
+        motions after it are not checked, and all go through one compiled call (each costs
+        ~10 µs of argument passing, as much as checking several configurations)."""
+        ok = self._motions(Q0, Q1, resolution, deadline, True)
+        return int(np.argmax(ok)) if ok.any() else None
+
+    def _motions(self, Q0: Array, Q1: Array, resolution: float, deadline: float,
+                 until_free: bool) -> BoolArray:
         Q0, Q1 = self._as_batch(Q0), self._as_batch(Q1)
         out = np.zeros(len(Q0), dtype=bool)
         done = resume = calls = 0
-        while done < len(Q0):
+        while done < len(Q0) and not (until_free and out.any()):
             left = deadline - time.perf_counter()
             if calls > 0 and left <= 0.0:
                 break
             part, done, resume = self.run_kernel(
                 validity.motions_valid, Q0, Q1, float(resolution), done, resume,
-                validity.check_budget(max(left, 0.0)))
+                validity.check_budget(max(left, 0.0)), until_free)
             out |= part
             calls += 1
         return out

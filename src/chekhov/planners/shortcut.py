@@ -13,20 +13,16 @@ from chekhov.collision.fast import FastChecker
 Array = NDArray[np.float64]
 
 
-JUMP_BATCH = 4
-"""Candidate jumps screened per batched motion check in :func:`shortcut_path`."""
-
-
 def shortcut_path(fast: FastChecker, path: Array, resolution: float = 0.02,
                   coarse: float = 0.1, deadline: float = math.inf) -> Array:
     """The path (T, K) with every waypoint skipped that a straight, collision-free motion can
     jump over: from each kept waypoint, go to the farthest later waypoint it sees. Candidate
-    jumps are screened at a ``coarse`` resolution (batched motion checks, farthest first, so
-    that nearer ones are not screened once a far one is taken), then the farthest survivor is
-    confirmed at ``resolution`` (rad) before it is taken. The result's waypoints are a
-    subsequence of the input's, its segments are free at ``resolution``, and it is never
-    longer (the path's own segments are assumed free, as a planner's are). After ``deadline``
-    (a ``time.perf_counter()`` value, s) the rest of the path is kept as it is."""
+    jumps are screened at a ``coarse`` resolution, farthest first (nearer ones are not
+    screened once a far one is taken), and the farthest survivor is confirmed at
+    ``resolution`` (rad) before it is taken. The result's waypoints are a subsequence of the
+    input's, its segments are free at ``resolution``, and it is never longer (the path's own
+    segments are assumed free, as a planner's are). After ``deadline`` (a
+    ``time.perf_counter()`` value, s) the rest of the path is kept as it is."""
     P = np.atleast_2d(np.asarray(path, dtype=float))
     keep = [0]
     i = 0
@@ -41,19 +37,19 @@ def _farthest_jump(fast: FastChecker, P: Array, i: int, resolution: float, coars
                    deadline: float) -> int:
     """The farthest waypoint after i of P (T, K) that a straight motion from P[i] reaches
     free (screened at ``coarse``, confirmed at ``resolution``), i + 1 when none is (or the
-    deadline has passed). The candidates are screened farthest first, :data:`JUMP_BATCH` at
-    a time, the deadline looked at between batches and confirmations."""
-    for hi in range(len(P), i + 2, -JUMP_BATCH):
-        if time.perf_counter() >= deadline:
+    deadline has passed). Each screening call stops at its first free candidate, farthest
+    first."""
+    later = np.arange(len(P) - 1, i + 1, -1)
+    start = np.repeat(P[i:i + 1], len(later), axis=0)
+    k = 0
+    while k < len(later):
+        found = fast.first_free_motion(start[k:], P[later[k:]], coarse, deadline)
+        if found is None:
             break
-        later = np.arange(max(i + 2, hi - JUMP_BATCH), hi)
-        start = np.repeat(P[i:i + 1], len(later), axis=0)
-        ok = fast.motions_valid(start, P[later], coarse, deadline)
-        for cand in later[ok][::-1]:
-            if time.perf_counter() >= deadline:
-                return i + 1
-            if fast.motions_valid(P[i:i + 1], P[cand:cand + 1], resolution, deadline)[0]:
-                return int(cand)
+        cand = int(later[k + found])
+        if fast.motions_valid(P[i:i + 1], P[cand:cand + 1], resolution, deadline)[0]:
+            return cand
+        k += found + 1
     return i + 1
 
 
@@ -96,14 +92,10 @@ def _most_saving_free(fast: FastChecker, A: Array, B: Array, saved: Array,
     """Index of the free motion A[i] → B[i] (n, K) that saves the most (``saved`` (n,) rad,
     more than 1e-6; the first such index on ties), or -1 — also when ``deadline``
     (``time.perf_counter()`` value, s) passes before one is found. The motions are checked
-    one at a time in that order, so those after the answer are never checked. Measured on 80 Panda
-    paths (16 pairs a round, in one run): partial_shortcut took 51-57% less time than when
-    it checked all 16 in one batch (in batches of 2: 45-50% less, of 4: 33-39%, of 8: 20%),
-    with the same paths."""
+    in that order, in one compiled call, so those after the answer are never checked
+    (measured on 80 Panda paths, 16 pairs a round, when they were checked one call each:
+    partial_shortcut took 51-57% less time than when it checked all 16 in one batch)."""
     order = np.argsort(-saved, kind="stable")
-    for i in order[saved[order] > 1e-6]:
-        if time.perf_counter() >= deadline:
-            return -1
-        if fast.motions_valid(A[i:i + 1], B[i:i + 1], resolution, deadline)[0]:
-            return int(i)
-    return -1
+    order = order[saved[order] > 1e-6]
+    found = fast.first_free_motion(A[order], B[order], resolution, deadline)
+    return -1 if found is None else int(order[found])
