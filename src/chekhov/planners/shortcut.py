@@ -14,43 +14,35 @@ Array = NDArray[np.float64]
 
 
 def shortcut_path(fast: FastChecker, path: Array, resolution: float = 0.02,
-                  coarse: float = 0.1, deadline: float = math.inf) -> Array:
+                  deadline: float = math.inf) -> Array:
     """The path (T, K) with every waypoint skipped that a straight, collision-free motion can
-    jump over: from each kept waypoint, go to the farthest later waypoint it sees. Candidate
-    jumps are screened at a ``coarse`` resolution, farthest first (nearer ones are not
-    screened once a far one is taken), and the farthest survivor is confirmed at
-    ``resolution`` (rad) before it is taken. The result's waypoints are a subsequence of the
-    input's, its segments are free at ``resolution``, and it is never longer (the path's own
-    segments are assumed free, as a planner's are). After ``deadline`` (a
-    ``time.perf_counter()`` value, s) the rest of the path is kept as it is."""
+    jump over: from each kept waypoint, go to the farthest later waypoint it sees (free at
+    ``resolution``, rad). The result's waypoints are a subsequence of the input's, its
+    segments are free at ``resolution``, and it is never longer (the path's own segments are
+    assumed free, as a planner's are). After ``deadline`` (a ``time.perf_counter()`` value, s)
+    the rest of the path is kept as it is."""
     P = np.atleast_2d(np.asarray(path, dtype=float))
     keep = [0]
     i = 0
     while i < len(P) - 1:
-        j = _farthest_jump(fast, P, i, resolution, coarse, deadline)
+        j = _farthest_jump(fast, P, i, resolution, deadline)
         keep.append(j)
         i = j
     return P[keep]
 
 
-def _farthest_jump(fast: FastChecker, P: Array, i: int, resolution: float, coarse: float,
+def _farthest_jump(fast: FastChecker, P: Array, i: int, resolution: float,
                    deadline: float) -> int:
     """The farthest waypoint after i of P (T, K) that a straight motion from P[i] reaches
-    free (screened at ``coarse``, confirmed at ``resolution``), i + 1 when none is (or the
-    deadline has passed). Each screening call stops at its first free candidate, farthest
-    first."""
+    free at ``resolution``, i + 1 when none is (or the deadline has passed): the candidates
+    farthest first in one call that stops at the first free one. (Screening them at 0.1 rad
+    first, then confirming, as before: 12-20% slower on the shortcuts of 40 task cases'
+    routes in shelf_boxes and panda_cage, the same paths; bisection order finds a blocked
+    motion's collision early anyway.)"""
     later = np.arange(len(P) - 1, i + 1, -1)
     start = np.repeat(P[i:i + 1], len(later), axis=0)
-    k = 0
-    while k < len(later):
-        found = fast.first_free_motion(start[k:], P[later[k:]], coarse, deadline)
-        if found is None:
-            break
-        cand = int(later[k + found])
-        if fast.motions_valid(P[i:i + 1], P[cand:cand + 1], resolution, deadline)[0]:
-            return cand
-        k += found + 1
-    return i + 1
+    found = fast.first_free_motion(start, P[later], resolution, deadline)
+    return i + 1 if found is None else int(later[found])
 
 
 def partial_shortcut(fast: FastChecker, path: Array, rng: np.random.Generator, *,
