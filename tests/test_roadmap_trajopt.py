@@ -104,6 +104,25 @@ def test_shortcut_takes_the_farthest_free_jump(world, planner):
     assert jumped >= 10, jumped
 
 
+def test_shortcuts_past_their_deadline_check_nothing(world, planner, monkeypatch):
+    """With the deadline passed, the greedy shortcut keeps the path as it is and the
+    simplification returns it unchanged, without a motion check: a compiled call would still
+    look at some configurations (near a query's time limit, one a waypoint overran it by up
+    to 0.6 ms)."""
+    seeds = _roadmap_seeds(planner, generate_cases(world, 3, seed=7))
+    assert seeds
+
+    def no_checks(*args, **kwargs):
+        raise AssertionError("motion checked past the deadline")
+
+    monkeypatch.setattr(world.fast, "first_free_motion", no_checks)
+    monkeypatch.setattr(world.fast, "motions_valid", no_checks)
+    for P in seeds:
+        np.testing.assert_array_equal(shortcut_path(world.fast, P, deadline=0.0), P)
+        np.testing.assert_array_equal(
+            partial_shortcut(world.fast, P, np.random.default_rng(0), deadline=0.0), P)
+
+
 def _check_every_pair(fast, A, B, saved, resolution, deadline=np.inf):
     """The round's choice as partial_shortcut used to make it: every drawn pair checked in
     one batch, the free one that saves the most (first on ties), or -1 (no deadline)."""
