@@ -265,6 +265,11 @@ def test_budgeted_motion_checks_resumed_decide_the_same(world_of):
         want = int(later[0] - k) if len(later) else None
         assert w.fast.first_free_motion(A[k:], B[k:], 0.02) == want
     assert w.fast.first_free_motion(A[~ref], B[~ref], 0.02) is None
+    # a motion with no interior step is free, and ends the search there
+    k = int(np.flatnonzero(~ref)[0])
+    stay = np.vstack([A[~ref][:3], A[k:k + 1], A[~ref][3:6]])
+    to = np.vstack([B[~ref][:3], A[k:k + 1], B[~ref][3:6]])
+    assert w.fast.first_free_motion(stay, to, 0.02) == 3
 
 
 def test_group_order_and_coarse_grids_do_not_change_decisions(world_of, rng):

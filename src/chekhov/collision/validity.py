@@ -388,8 +388,10 @@ def motions_valid(Q0, Q1, resolution, first, first_m, checks, until_free, world
         d = Q1[i] - Q0[i]
         n = int(np.ceil(np.sqrt(np.sum(d * d)) / resolution))
         m0 = first_m if i == first else 0
-        if n - 1 <= m0:
+        if n - 1 <= m0:   # no interior step (left)
             out[i] = True
+            if until_free:
+                return out, i + 1, 0
             continue
         if left <= 0:
             return out, i, m0
