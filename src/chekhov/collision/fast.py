@@ -234,9 +234,13 @@ class FastChecker:
     def first_free_motion(self, Q0: Array, Q1: Array, resolution: float = 0.02,
                           deadline: float = math.inf) -> int | None:
         """Index of the first motion Q0[i] → Q1[i] (candidates in order of preference) that
-        :meth:`motions_valid` calls free, or None — also when ``deadline`` passes first. The
-        motions after it are not checked, and all go through one compiled call (each costs
-        ~10 µs of argument passing, as much as checking several configurations)."""
+        :meth:`motions_valid` calls free, or None — also when ``deadline`` passes first (once
+        passed, none is checked: a caller looping over candidate lists, as the shortcuts do,
+        would otherwise make a budgeted call per list). The motions after it are not checked,
+        and all go through one compiled call (each costs ~10 µs of argument passing, as much
+        as checking several configurations)."""
+        if time.perf_counter() >= deadline:
+            return None
         ok = self._motions(Q0, Q1, resolution, deadline, True)
         return int(np.argmax(ok)) if ok.any() else None
 
