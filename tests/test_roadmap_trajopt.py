@@ -122,10 +122,10 @@ def test_shortcuts_past_their_deadline_check_nothing(world, planner, monkeypatch
             partial_shortcut(world.fast, P, np.random.default_rng(0), deadline=0.0), P)
 
 
-def _check_every_pair(fast, A, B, saved, resolution, deadline=np.inf):
+def _check_every_pair(fast, A, B, saved, resolution, deadline=np.inf, clearance_m=0.0):
     """The round's choice as partial_shortcut used to make it: every drawn pair checked in
     one batch, the free one that saves the most (first on ties), or -1 (no deadline)."""
-    ok = (saved > 1e-6) & fast.motions_valid(A, B, resolution)
+    ok = (saved > 1e-6) & fast.motions_valid(A, B, resolution, clearance_m=clearance_m)
     return int(np.argmax(np.where(ok, saved, -np.inf))) if ok.any() else -1
 
 

@@ -103,6 +103,7 @@ class FastChecker:
         self._scene_dynamic = frozenset(self._dynamic)   # set_obstacles keeps these
         self._entries: dict[Any, Any] = {}
         self._layout = _layout(self.packed)
+        self._clear_worlds: dict[float, tuple[int, PackedWorld]] = {}
         self._packers = (PrefixPacker(), PrefixPacker())
         self.obstacles_version = 0
         self.obstacle_names = list(self._obstacles)
@@ -223,39 +224,63 @@ class FastChecker:
         return bool(self.valid(q)[0])
 
     def motions_valid(self, Q0: Array, Q1: Array, resolution: float = 0.02,
-                      deadline: float = math.inf) -> BoolArray:
+                      deadline: float = math.inf, *, clearance_m: float = 0.0) -> BoolArray:
         """Whether each straight motion Q0[i] → Q1[i] is free at every ``resolution`` (rad)
         step of joint-space distance, visited in bisection order; end points are not checked.
         With a ``deadline`` (a ``time.perf_counter()`` value, s) the compiled calls are
         budgeted (``validity.check_budget``) and the clock is looked at between them: a
-        motion not decided by then counts as blocked."""
-        return self._motions(Q0, Q1, resolution, deadline, False)
+        motion not decided by then counts as blocked. ``clearance_m`` > 0: free only where
+        the checks in :meth:`clearance_world` pass (every link's geometry at least that far
+        from everything)."""
+        return self._motions(Q0, Q1, resolution, deadline, False, clearance_m)
+
+    def clearance_world(self, clearance_m: float) -> PackedWorld:
+        """:attr:`packed` with every sphere and group bound ``clearance_m`` (m) larger and
+        every confirmation on the covered geometry asked to prove at least that gap
+        (``GroupGeometry.pad``): a configuration it calls free keeps each link's collision
+        geometry at least ``clearance_m`` from obstacles and fixed robot parts and
+        2 ``clearance_m`` from other links. Kept until the obstacles change."""
+        kept = self._clear_worlds.get(clearance_m)
+        if kept is not None and kept[0] == self.obstacles_version:
+            return kept[1]
+        P = self.packed
+        world = P._replace(
+            geometry=P.geometry._replace(pad=_like(P.geometry.pad,
+                                                   np.maximum(P.geometry.pad, clearance_m))),
+            spheres=P.spheres._replace(radius=_like(P.spheres.radius,
+                                                    P.spheres.radius + clearance_m)),
+            groups=P.groups._replace(radius=_like(P.groups.radius,
+                                                  P.groups.radius + clearance_m)))
+        self._clear_worlds[clearance_m] = (self.obstacles_version, world)
+        return world
 
     def first_free_motion(self, Q0: Array, Q1: Array, resolution: float = 0.02,
-                          deadline: float = math.inf) -> int | None:
+                          deadline: float = math.inf, *, clearance_m: float = 0.0
+                          ) -> int | None:
         """Index of the first motion Q0[i] → Q1[i] (candidates in order of preference) that
         :meth:`motions_valid` calls free, or None — also when ``deadline`` passes first (once
         passed, none is checked: a caller looping over candidate lists, as the shortcuts do,
         would otherwise make a budgeted call per list). The motions after it are not checked,
         and all go through one compiled call (each costs ~10 µs of argument passing, as much
-        as checking several configurations)."""
+        as checking several configurations). ``clearance_m``: as in :meth:`motions_valid`."""
         if time.perf_counter() >= deadline:
             return None
-        ok = self._motions(Q0, Q1, resolution, deadline, True)
+        ok = self._motions(Q0, Q1, resolution, deadline, True, clearance_m)
         return int(np.argmax(ok)) if ok.any() else None
 
     def _motions(self, Q0: Array, Q1: Array, resolution: float, deadline: float,
-                 until_free: bool) -> BoolArray:
+                 until_free: bool, clearance_m: float) -> BoolArray:
         Q0, Q1 = self._as_batch(Q0), self._as_batch(Q1)
+        world = self.packed if clearance_m <= 0.0 else self.clearance_world(clearance_m)
         out = np.zeros(len(Q0), dtype=bool)
         done = resume = calls = 0
         while done < len(Q0) and not (until_free and out.any()):
             left = deadline - time.perf_counter()
             if calls > 0 and left <= 0.0:
                 break
-            part, done, resume = self.run_kernel(
-                validity.motions_valid, Q0, Q1, float(resolution), done, resume,
-                validity.check_budget(max(left, 0.0)), until_free)
+            part, done, resume = self._run_in(world, validity.motions_valid, (
+                Q0, Q1, float(resolution), done, resume, validity.check_budget(max(left, 0.0)),
+                until_free))
             out |= part
             calls += 1
         return out
@@ -331,6 +356,14 @@ def _layout(packed: PackedWorld) -> tuple[tuple[object, ...], ...]:
     obstacles crossed 1 (38 times in one react episode, each costing ~1-3 ms of typing)."""
     return tuple((a.dtype, a.ndim, _numba_layout(a), a.flags.writeable, a.flags.aligned)
                  for prims in (packed.dynamic, packed.obstacles) for a in prims)
+
+
+def _like(a: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """``values`` as an array of ``a``'s numba type (dtype, C order, writability), so that the
+    compiled entry points kept for a packed world holding ``a`` take one holding it."""
+    out = np.ascontiguousarray(values, dtype=a.dtype)
+    out.flags.writeable = a.flags.writeable
+    return out
 
 
 def _numba_layout(a: np.ndarray) -> str:
