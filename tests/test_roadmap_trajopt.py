@@ -115,7 +115,7 @@ def test_shortcuts_past_their_deadline_check_nothing(world, planner, monkeypatch
     def no_checks(*args, **kwargs):
         raise AssertionError("motion checked past the deadline")
 
-    monkeypatch.setattr(world.fast, "run_kernel", no_checks)   # every compiled check
+    monkeypatch.setattr(world.fast, "_run_in", no_checks)   # every compiled check
     for P in seeds:
         np.testing.assert_array_equal(shortcut_path(world.fast, P, deadline=0.0), P)
         np.testing.assert_array_equal(

@@ -237,20 +237,15 @@ class FastChecker:
     def clearance_world(self, clearance_m: float) -> PackedWorld:
         """:attr:`packed` with every sphere and group bound ``clearance_m`` (m) larger and
         every confirmation on the covered geometry asked to prove at least that gap
-        (``GroupGeometry.pad``): a configuration it calls free keeps each link's collision
-        geometry at least ``clearance_m`` from obstacles and fixed robot parts and
-        2 ``clearance_m`` from other links. Kept until the obstacles change."""
+        (``dense_path.with_margin``, as the certification's screen widens it): a
+        configuration it calls free keeps each link's collision geometry at least
+        ``clearance_m`` from obstacles and fixed robot parts and 2 ``clearance_m`` from other
+        links. Kept until the obstacles change."""
         kept = self._clear_worlds.get(clearance_m)
         if kept is not None and kept[0] == self.obstacles_version:
             return kept[1]
-        P = self.packed
-        world = P._replace(
-            geometry=P.geometry._replace(pad=_like(P.geometry.pad,
-                                                   np.maximum(P.geometry.pad, clearance_m))),
-            spheres=P.spheres._replace(radius=_like(P.spheres.radius,
-                                                    P.spheres.radius + clearance_m)),
-            groups=P.groups._replace(radius=_like(P.groups.radius,
-                                                  P.groups.radius + clearance_m)))
+        margin = np.full(self.packed.groups.radius.shape[0], float(clearance_m))
+        world = dense_path.with_margin(self.packed, margin, margin)
         self._clear_worlds[clearance_m] = (self.obstacles_version, world)
         return world
 
@@ -319,6 +314,7 @@ class FastChecker:
         q1 = q0 + 0.1
         self.valid(np.vstack([q0, q1]))
         self.motions_valid(q0[None], q1[None])
+        self.motions_valid(q0[None], q1[None], clearance_m=1e-3)   # and with_margin
         self.first_dense_collision(np.vstack([q0, q1]), 2)
         TrajectoryDistances(self).warm_up()
 
@@ -356,14 +352,6 @@ def _layout(packed: PackedWorld) -> tuple[tuple[object, ...], ...]:
     obstacles crossed 1 (38 times in one react episode, each costing ~1-3 ms of typing)."""
     return tuple((a.dtype, a.ndim, _numba_layout(a), a.flags.writeable, a.flags.aligned)
                  for prims in (packed.dynamic, packed.obstacles) for a in prims)
-
-
-def _like(a: np.ndarray, values: np.ndarray) -> np.ndarray:
-    """``values`` as an array of ``a``'s numba type (dtype, C order, writability), so that the
-    compiled entry points kept for a packed world holding ``a`` take one holding it."""
-    out = np.ascontiguousarray(values, dtype=a.dtype)
-    out.flags.writeable = a.flags.writeable
-    return out
 
 
 def _numba_layout(a: np.ndarray) -> str:
