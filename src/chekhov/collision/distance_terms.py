@@ -148,16 +148,28 @@ def _sd_along(kind, R, p, size, c0, c1, alpha, x):  # pragma: no cover - compile
 
 @njit(cache=True, nogil=True)
 def _swept_min(kind, R, p, size, c0, c1, iters):  # pragma: no cover - compiled
-    """(min over α ∈ [0, 1] of sd(c0 + α (c1 - c0)), α*): golden-section search (sd is convex
-    along a line for a convex obstacle), one new evaluation a step (the other interior point
-    is the last step's), ends included; at most ``iters`` steps, fewer once the bracket
-    spans less than :data:`SWEPT_TOLERANCE_M` of the travel |c1 - c0|."""
+    """(min over α ∈ [0, 1] of sd(c0 + α (c1 - c0)), α*), within :data:`SWEPT_TOLERANCE_M`.
+    sd is convex along a line for a convex obstacle, so when it does not descend from an end
+    over the first ``e`` of the segment (``e`` |c1 - c0| = the tolerance), no point beyond
+    is lower than that end (f(α) ≥ f(0) + (α / e) (f(e) - f(0)); likewise from α = 1) and the
+    minimum lies within the tolerance of it, no more than the tolerance lower (sd is
+    1-Lipschitz): four evaluations decide most segments, which move a sphere steadily
+    towards or away from an obstacle. Otherwise a golden-section search, one new evaluation a
+    step (the other interior point is the last step's), at most ``iters`` steps, fewer once
+    the bracket spans less than the tolerance of the travel."""
     x = np.empty(3)
+    travel = np.sqrt((c1[0] - c0[0]) ** 2 + (c1[1] - c0[1]) ** 2 + (c1[2] - c0[2]) ** 2)
+    e = min(0.5, SWEPT_TOLERANCE_M / max(travel, 1e-300))
+    f0 = _sd_along(kind, R, p, size, c0, c1, 0.0, x)
+    if _sd_along(kind, R, p, size, c0, c1, e, x) >= f0:
+        return f0, 0.0
+    f_end = _sd_along(kind, R, p, size, c0, c1, 1.0, x)
+    if _sd_along(kind, R, p, size, c0, c1, 1.0 - e, x) >= f_end:
+        return f_end, 1.0
     lo, hi = 0.0, 1.0
     m1, m2 = lo + _GOLDEN * (hi - lo), hi - _GOLDEN * (hi - lo)
     f1 = _sd_along(kind, R, p, size, c0, c1, m1, x)
     f2 = _sd_along(kind, R, p, size, c0, c1, m2, x)
-    travel = np.sqrt((c1[0] - c0[0]) ** 2 + (c1[1] - c0[1]) ** 2 + (c1[2] - c0[2]) ** 2)
     for _ in range(iters):
         if (hi - lo) * travel < SWEPT_TOLERANCE_M:
             break
@@ -171,10 +183,10 @@ def _swept_min(kind, R, p, size, c0, c1, iters):  # pragma: no cover - compiled
             f2 = _sd_along(kind, R, p, size, c0, c1, m2, x)
     best_a = 0.5 * (lo + hi)
     best = _sd_along(kind, R, p, size, c0, c1, best_a, x)
-    for a_end in (0.0, 1.0):  # the minimum may sit at an end (flat or monotone sd)
-        f = _sd_along(kind, R, p, size, c0, c1, a_end, x)
-        if f < best:
-            best, best_a = f, a_end
+    if f0 < best:    # rounding: an end found lower
+        best, best_a = f0, 0.0
+    if f_end < best:
+        best, best_a = f_end, 1.0
     return best, best_a
 
 
