@@ -76,53 +76,58 @@ def signed_distance(kind, R, p, size, x):  # pragma: no cover - compiled
 @njit(cache=True, nogil=True, inline="always")
 def signed_distance_normal(kind, R, p, size, x, n_out):  # pragma: no cover - compiled
     """Signed distance like :func:`signed_distance`; n_out gets the unit world gradient
-    (the direction moving x away from the obstacle fastest)."""
-    d = x - p
-    l = R.T @ d
-    g = np.zeros(3)
+    (the direction moving x away from the obstacle fastest). Scalars only: small arrays
+    (``R.T @ d``, ``np.zeros(3)``) cost more than the arithmetic."""
+    d0 = x[0] - p[0]
+    d1 = x[1] - p[1]
+    d2 = x[2] - p[2]
+    l0 = R[0, 0] * d0 + R[1, 0] * d1 + R[2, 0] * d2
+    l1 = R[0, 1] * d0 + R[1, 1] * d1 + R[2, 1] * d2
+    l2 = R[0, 2] * d0 + R[1, 2] * d1 + R[2, 2] * d2
+    g0 = g1 = g2 = 0.0
     if kind == SPHERE:
-        nl = np.sqrt(l[0] ** 2 + l[1] ** 2 + l[2] ** 2)
+        nl = np.sqrt(l0 * l0 + l1 * l1 + l2 * l2)
         if nl > 1e-12:
-            g = l / nl
+            g0, g1, g2 = l0 / nl, l1 / nl, l2 / nl
         else:
-            g[2] = 1.0
+            g2 = 1.0
         sd = nl - size[0]
     elif kind == BOX:
-        q = np.abs(l) - size[:3]
-        if q[0] > 0 or q[1] > 0 or q[2] > 0:
-            o = np.maximum(q, 0.0)
-            no = np.sqrt(o[0] ** 2 + o[1] ** 2 + o[2] ** 2)
-            for a in range(3):
-                g[a] = np.sign(l[a]) * o[a] / no
+        q0 = abs(l0) - size[0]
+        q1 = abs(l1) - size[1]
+        q2 = abs(l2) - size[2]
+        if q0 > 0 or q1 > 0 or q2 > 0:
+            o0, o1, o2 = max(q0, 0.0), max(q1, 0.0), max(q2, 0.0)
+            no = np.sqrt(o0 * o0 + o1 * o1 + o2 * o2)
+            g0, g1, g2 = np.sign(l0) * o0 / no, np.sign(l1) * o1 / no, np.sign(l2) * o2 / no
             sd = no
+        elif q0 >= q1 and q0 >= q2:   # the first largest, as argmax picks it
+            g0 = 1.0 if l0 >= 0 else -1.0
+            sd = q0
+        elif q1 >= q2:
+            g1 = 1.0 if l1 >= 0 else -1.0
+            sd = q1
         else:
-            m = int(np.argmax(q))
-            g[m] = 1.0 if l[m] >= 0 else -1.0
-            sd = q[m]
+            g2 = 1.0 if l2 >= 0 else -1.0
+            sd = q2
     else:
-        rr = np.sqrt(l[0] ** 2 + l[1] ** 2)
+        rr = np.sqrt(l0 * l0 + l1 * l1)
         qr = rr - size[0]
-        qz = abs(l[2]) - size[1]
-        ur = np.zeros(3)
-        if rr > 1e-12:
-            ur[0] = l[0] / rr
-            ur[1] = l[1] / rr
-        else:
-            ur[0] = 1.0
-        uz = np.zeros(3)
-        uz[2] = 1.0 if l[2] >= 0 else -1.0
+        qz = abs(l2) - size[1]
+        ur0, ur1 = (l0 / rr, l1 / rr) if rr > 1e-12 else (1.0, 0.0)
+        uz = 1.0 if l2 >= 0 else -1.0
         if qr > 0 and qz > 0:
             no = np.sqrt(qr * qr + qz * qz)
-            g = (qr * ur + qz * uz) / no
+            g0, g1, g2 = qr * ur0 / no, qr * ur1 / no, qz * uz / no
             sd = no
         elif qr > qz:
-            g = ur
+            g0, g1 = ur0, ur1
             sd = qr
         else:
-            g = uz
+            g2 = uz
             sd = qz
     for a in range(3):
-        n_out[a] = R[a, 0] * g[0] + R[a, 1] * g[1] + R[a, 2] * g[2]
+        n_out[a] = R[a, 0] * g0 + R[a, 1] * g1 + R[a, 2] * g2
     return sd
 
 
