@@ -301,8 +301,8 @@ def _self_candidates(q, margin, clear, world, cw, gw, n, cand):  # pragma: no co
     cd, cs, co, ck, ca, cn = cand
     for i in range(self_pairs.shape[0]):
         a, b = self_pairs[i, 0], self_pairs[i, 1]
-        dx = gw[a] - gw[b]
-        if np.sqrt(np.sum(dx * dx)) - gr[a] - gr[b] >= margin:
+        if np.sqrt((gw[a, 0] - gw[b, 0]) ** 2 + (gw[a, 1] - gw[b, 1]) ** 2
+                   + (gw[a, 2] - gw[b, 2]) ** 2) - gr[a] - gr[b] >= margin:
             continue
         if table_gap(q, i, tpair, tjoint, tlo, tinv, tgap) >= clear:
             continue
@@ -314,11 +314,12 @@ def _self_candidates(q, margin, clear, world, cw, gw, n, cand):  # pragma: no co
                 if d < best:
                     best, bs, bt = d, s, u
         if best < margin and n < cd.shape[0]:
-            dx = cw[bs] - cw[bt]
-            nd = np.sqrt(np.sum(dx * dx))
+            nd = np.sqrt((cw[bs, 0] - cw[bt, 0]) ** 2 + (cw[bs, 1] - cw[bt, 1]) ** 2
+                         + (cw[bs, 2] - cw[bt, 2]) ** 2)
             cd[n], cs[n], co[n], ck[n], ca[n] = best, bs, bt, SELF, 0.0
             if nd > 1e-12:
-                cn[n] = dx / nd
+                for k in range(3):
+                    cn[n, k] = (cw[bs, k] - cw[bt, k]) / nd
             else:
                 cn[n] = 0.0
                 cn[n, 2] = 1.0
