@@ -467,8 +467,10 @@ class TrajectoryDistances:
         With a finite ``deadline`` (``time.perf_counter()`` value, s) the segments go in
         compiled calls of as many segments as fit :data:`DEADLINE_SHARE` of the time left at
         the worst cost per segment (:data:`SEGMENT_COST_SPREAD` times the cost seen), and
-        :class:`DeadlineError` is raised between two when it has passed. (Each call costs
-        ~20 µs more than its segments: numba unboxes the packed world's arrays.)"""
+        :class:`DeadlineError` is raised between two when it has passed. (A call's fixed
+        cost, ~13 µs on shelf_boxes against ~8 µs a segment, is the Python side, the packed
+        world's arrays passed in, the kernel's work arrays and the kinematics at the chunk's
+        ends.)"""
         Q = np.ascontiguousarray(Q, dtype=float)
         T, K = Q.shape
         dist = np.empty((T - 1, C))
