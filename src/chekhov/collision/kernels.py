@@ -47,14 +47,20 @@ def transform_points(R, p, joint, local, out):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True, inline="always")
-def signed_distance(kind, R, p, size, x):  # pragma: no cover - compiled
-    """Signed distance (m) from point x to the obstacle surface (negative inside)."""
+def _in_frame(R, p, x):  # pragma: no cover - compiled
+    """World point x in the frame (R, p): Rᵀ (x - p), as three scalars (no array)."""
     d0 = x[0] - p[0]
     d1 = x[1] - p[1]
     d2 = x[2] - p[2]
-    l0 = R[0, 0] * d0 + R[1, 0] * d1 + R[2, 0] * d2
-    l1 = R[0, 1] * d0 + R[1, 1] * d1 + R[2, 1] * d2
-    l2 = R[0, 2] * d0 + R[1, 2] * d1 + R[2, 2] * d2
+    return (R[0, 0] * d0 + R[1, 0] * d1 + R[2, 0] * d2,
+            R[0, 1] * d0 + R[1, 1] * d1 + R[2, 1] * d2,
+            R[0, 2] * d0 + R[1, 2] * d1 + R[2, 2] * d2)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def signed_distance(kind, R, p, size, x):  # pragma: no cover - compiled
+    """Signed distance (m) from point x to the obstacle surface (negative inside)."""
+    l0, l1, l2 = _in_frame(R, p, x)
     if kind == SPHERE:
         return np.sqrt(l0 * l0 + l1 * l1 + l2 * l2) - size[0]
     if kind == BOX:
@@ -78,12 +84,7 @@ def signed_distance_normal(kind, R, p, size, x, n_out):  # pragma: no cover - co
     """Signed distance like :func:`signed_distance`; n_out gets the unit world gradient
     (the direction moving x away from the obstacle fastest). Scalars only: small arrays
     (``R.T @ d``, ``np.zeros(3)``) cost more than the arithmetic."""
-    d0 = x[0] - p[0]
-    d1 = x[1] - p[1]
-    d2 = x[2] - p[2]
-    l0 = R[0, 0] * d0 + R[1, 0] * d1 + R[2, 0] * d2
-    l1 = R[0, 1] * d0 + R[1, 1] * d1 + R[2, 1] * d2
-    l2 = R[0, 2] * d0 + R[1, 2] * d1 + R[2, 2] * d2
+    l0, l1, l2 = _in_frame(R, p, x)
     g0 = g1 = g2 = 0.0
     if kind == SPHERE:
         nl = np.sqrt(l0 * l0 + l1 * l1 + l2 * l2)
