@@ -65,3 +65,47 @@ def clear_for(d, g, r, curve, step, dq, parent, gj, axis, Rc, pc, gwc
     local = 2.0 * d / (a + np.sqrt(a * a + 2.0 * curve * d))
     return int(min(max(local * (1.0 - 1e-9), d / step), 1e15))
 
+
+
+@njit(cache=True, nogil=True)
+def decision_margins(P, diff, W, scale, touches, padding, grid, slack
+                     ):  # pragma: no cover - compiled
+    """The margins of one exact path decision (``path_check._Coal``), in one call.
+
+    P (M, K) rad: the steps between samples, or (``diff``) a path whose waypoint differences,
+    times ``scale``, are. W (U, K) m/rad: the collision pairs' distinct motion-weight rows.
+    Returns one array (2 U + 2 G,), its parts in order (one allocation; a tuple of four
+    arrays costs more than the arithmetic): L (U,) m, each row's largest motion bound
+    Σ_k |step_k| W[u, k] over the steps, at least 1e-12; mu (U,) m, L / 2 rounded up to a
+    power of ``grid``, plus ``slack``; pad (G,) m, per fast-checker group the largest mu of
+    the rows its pairs have (``touches`` (G, U) bool; 0 with none); grow (G,) m, pad less
+    the spheres' ``padding``, at least 0."""
+    U, K = W.shape
+    G = touches.shape[0]
+    M = P.shape[0] - 1 if diff else P.shape[0]
+    out = np.zeros(2 * U + 2 * G)
+    L, mu, pad, grow = out[:U], out[U:2 * U], out[2 * U:2 * U + G], out[2 * U + G:]
+    a = np.empty(K)
+    for m in range(M):
+        for k in range(K):
+            a[k] = abs(P[m + 1, k] - P[m, k] if diff else P[m, k])
+        for u in range(U):
+            s = 0.0
+            for k in range(K):
+                s += a[k] * W[u, k]
+            if s > L[u]:
+                L[u] = s
+    log_grid = np.log(grid)
+    for u in range(U):
+        L[u] = max(L[u] * scale, 1e-12)
+        half = 0.5 * L[u]
+        r = grid ** np.ceil(np.log(half) / log_grid)
+        if r < half:       # the power's last bit
+            r *= grid
+        mu[u] = r + slack
+    for g in range(G):
+        for u in range(U):
+            if touches[g, u] and mu[u] > pad[g]:
+                pad[g] = mu[u]
+        grow[g] = max(pad[g] - padding, 0.0)
+    return out

@@ -64,6 +64,7 @@ from chekhov.collision import dense_path
 from chekhov.collision.codes import NONE
 from chekhov.collision.exact import ExactChecker, densify
 from chekhov.collision.fast import FastChecker
+from chekhov.collision.motion_bounds import decision_margins
 from chekhov.paths import resample_path
 
 Array = NDArray[np.float64]
@@ -270,30 +271,37 @@ class _Coal:
     stretch near contact only the pairs near contact are looked at again."""
 
     def __init__(self, exact: ExactChecker, P: Array, substeps: int,
-                 weights: tuple[Array, NDArray[np.int64]] | None,
-                 steps: Array | None = None) -> None:
+                 weights: tuple[Array, NDArray[np.int64]] | None = None,
+                 margins: tuple[Array, Array, Array, Array] | None = None) -> None:
         self.exact = exact
         self.P = P
         self.substeps = substeps
         self.weights = weights
-        # per fast-checker group, m: the screen's confirmation margins and sphere growth
-        # (empty: the screen as it is)
-        self.pad = self.grow = np.zeros(0)
         self.D: Array | None = None   # the densified path, when first needed
         self.deadline = math.inf      # time.perf_counter() value, s
-        if weights is not None:
-            W, row = weights
-            # m: per pair, the largest motion bound of one step between samples (of the
-            # given ``steps`` (M, K) rad instead, when there are)
-            bound = (np.abs(np.diff(P, axis=0)) @ W.T).max(axis=0) / (substeps + 1) \
-                if steps is None else (np.abs(steps) @ W.T).max(axis=0)
-            # per distinct weight row first (the kitchen: 1493 pairs, 63 rows), then per pair
-            L = np.maximum(bound, 1e-12)
-            mu = _round_up(0.5 * L) + MARGIN_SLACK
-            self.L, self.mu = L[row], mu[row]
+        # per distinct weight row, m: L_row the largest motion bound of one step between
+        # samples, mu_row the margin; per fast-checker group, m: the screen's confirmation
+        # margins and sphere growth (empty: the screen as it is) — ``decision_margins``
+        z = np.zeros(0)
+        self.L_row, self.mu_row, self.pad, self.grow = margins if margins is not None else (
+            z, z, z, z)
+        # per pair (set when coal is first asked, :meth:`_pair_arrays`): the motion bound L,
+        # margin mu, screening-test margin look and the sample each pair is certified through
+        self.L = self.mu = self.look = z
+        self.until: NDArray[np.int64] | None = None
+
+    def _pair_arrays(self) -> NDArray[np.int64]:
+        """``until`` (P,), with L, mu and look spread from their weight rows to the pairs on
+        first use: most decisions never ask coal (a fast-free path), and the spread costs
+        ~15 µs on the Baxter's 1000-1500 pairs."""
+        if self.until is None:
+            assert self.weights is not None
+            row = self.weights[1]
+            self.L, self.mu = self.L_row[row], self.mu_row[row]
             # the screening test's margins: a pass certifies the pair for LOOKAHEAD samples
-            self.look = (mu + LOOKAHEAD * L)[row]
+            self.look = (self.mu_row + LOOKAHEAD * self.L_row)[row]
             self.until = np.full(len(row), -1, dtype=np.int64)
+        return self.until
 
     @staticmethod
     def make(fast: FastChecker, exact: ExactChecker, P: Array, substeps: int,
@@ -304,17 +312,20 @@ class _Coal:
         grown by as much as that exceeds their padding (module docstring)."""
         weights = exact.motion_weights
         if weights is None or (len(P) < 2 and steps is None):
-            return _Coal(exact, P, substeps, None)
-        coal_ = _Coal(exact, P, substeps, weights, steps)
-        pairs = exact.collision_pairs
-        need = np.zeros(exact.geom_model.ngeoms)   # m, per geometry
-        np.maximum.at(need, pairs[:, 0], coal_.mu)
-        np.maximum.at(need, pairs[:, 1], coal_.mu)
-        # the geometry each group covers (its first sphere's)
-        geometry = fast.spheres.geometries[fast.packed.groups.start[:-1]]
-        coal_.pad = need[geometry]
-        coal_.grow = np.maximum(coal_.pad - fast.robot.description.spheres.padding, 0.0)
-        return coal_
+            return _Coal(exact, P, substeps)
+        # per distinct weight row (the kitchen: 1493 pairs, 63 rows) the largest motion bound
+        # of one step between samples (of the given ``steps`` instead, when there are) and
+        # half of it rounded up; per group, the largest of its pairs' margins and as much as
+        # that exceeds the spheres' padding; in one compiled call (~40 µs in numpy)
+        W = weights[0]
+        touches = _group_rows(fast, exact, weights)
+        m = decision_margins(
+            P if steps is None else np.ascontiguousarray(steps, dtype=np.float64),
+            steps is None, W, 1.0 / (substeps + 1) if steps is None else 1.0, touches,
+            fast.robot.description.spheres.padding, _GRID, MARGIN_SLACK)
+        U, G = len(W), len(touches)
+        return _Coal(exact, P, substeps, weights,
+                     (m[:U], m[U:2 * U], m[2 * U:2 * U + G], m[2 * U + G:]))
 
     def first_alarm(self, fast: FastChecker, P: Array, start: int) -> int | None:
         """Index (>= ``start``) into ``densify(P, self.substeps)`` of the first configuration
@@ -337,7 +348,7 @@ class _Coal:
 
     def certified_through(self) -> int:
         """The last sample through which coal's certificates cover every pair (-1: none)."""
-        return -1 if self.weights is None else int(self.until.min())
+        return -1 if self.until is None else int(self.until.min())
 
     def sample_free(self, j: int) -> bool:
         """Whether sample j of the densified path is free and, unless it is the first or the
@@ -347,7 +358,8 @@ class _Coal:
         D, exact = self.D, self.exact
         if self.weights is None:
             return exact.is_valid(D[j])
-        todo = np.flatnonzero(self.until < j)
+        until = self._pair_arrays()
+        todo = np.flatnonzero(until < j)
         if len(todo) == 0:
             return True
         if j == 0 or j == len(D) - 1:
@@ -357,13 +369,13 @@ class _Coal:
             self.check_time()
             lb = exact.pair_bounds(q, todo)
             far = lb >= self.look[todo]
-            self.until[todo[far]] = j + ((lb[far] - self.mu[todo[far]])
-                                         // self.L[todo[far]]).astype(np.int64)
+            until[todo[far]] = j + ((lb[far] - self.mu[todo[far]])
+                                    // self.L[todo[far]]).astype(np.int64)
             todo = todo[~far]
             if len(todo) == 0:
                 return True
         close = self._pairs_within(q, todo)
-        self.until[todo] = j + LOOKAHEAD
+        until[todo] = j + LOOKAHEAD
         if len(close) == 0:
             return True
         self.check_time()
@@ -371,7 +383,7 @@ class _Coal:
         if d.min() <= MARGIN_SLACK:   # in contact, or too near it to prove anything
             return False
         spare = d - self.mu[close]
-        self.until[close] = j + np.floor(np.maximum(spare, 0.0) / self.L[close]).astype(np.int64)
+        until[close] = j + np.floor(np.maximum(spare, 0.0) / self.L[close]).astype(np.int64)
         if np.all(spare >= 0.0):
             return True
         # the bound of this very cell (the path's largest step's may be far larger)
@@ -393,6 +405,33 @@ class _Coal:
             self.check_time()
             close.append(self.exact.pairs_within(q, self.look, part))
         return np.concatenate(close)
+
+
+_GROUP_ROWS: dict[tuple[int, int], tuple[object, object, NDArray[np.bool_]]] = {}
+"""(id(weights), id(spheres)) → (weights, spheres, incidence) for :func:`_group_rows`."""
+
+
+def _group_rows(fast: FastChecker, exact: ExactChecker,
+                weights: tuple[Array, NDArray[np.int64]]) -> NDArray[np.bool_]:
+    """(G, U) bool: whether a collision pair of fast-checker group g's geometry (its first
+    sphere's) has weight row u — so that a group's margin is the largest of its rows' margins,
+    without going over the pairs (1000-1500 on the Baxter) in every decision. Kept per
+    ``weights`` object (the exact checker makes a new one whenever its pairs change) and
+    sphere model."""
+    key = (id(weights), id(fast.spheres))
+    kept = _GROUP_ROWS.get(key)
+    if kept is not None and kept[0] is weights and kept[1] is fast.spheres:
+        return kept[2]
+    W, row = weights
+    pairs = exact.collision_pairs
+    touches = np.zeros((exact.geom_model.ngeoms, len(W)), dtype=bool)
+    touches[pairs[:, 0], row] = True
+    touches[pairs[:, 1], row] = True
+    if len(_GROUP_ROWS) >= 16:
+        _GROUP_ROWS.clear()
+    group_rows = touches[fast.spheres.geometries[fast.packed.groups.start[:-1]]]
+    _GROUP_ROWS[key] = (weights, fast.spheres, group_rows)
+    return group_rows
 
 
 def _round_up(x: Array | float) -> Array:
