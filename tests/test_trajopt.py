@@ -5,6 +5,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
@@ -132,6 +133,39 @@ def test_qp_step_decreases_cost_on_an_unconstrained_problem(pole, rng):
     assert after == pytest.approx(optimum, rel=1e-3)
     assert model == pytest.approx(prob.merit(prob.evaluate(x.reshape(prob.seed.shape)), 10.0),
                                   rel=1e-3)
+
+
+def test_qp_residual_slacks_match_its_assembled_rows(pole, rng):
+    """The compiled fill and residual slacks agree with the QP's own sparse matrix: with a
+    duration, torque limits and a pose goal (every kind of block), each slack is the largest
+    violation, at a random x, of the rows that hold it (its coefficient: +1 on a ≥ row, -1
+    on a ≤ row), read off the assembled matrix; and at the linearisation point the slacks
+    are the problem's own violations (its merit, from the evaluation)."""
+    q0, q1, _ = _pole_crossing_lines(pole, 1)[0]     # collision terms violated at the seed
+    cfg = TrajOptConfig(duration_s=3.0, n_waypoints=30, check_distance_m=0.5)
+    prob = build_trajopt(pole, q0, Goal.pose(pole.robot.compute_ee_pose(q1)),
+                         straight_line_seed(q0, q1, 30), cfg)
+    qp = TrajOptQP(prob)
+    ev = prob.evaluate(prob.seed)
+    _, lo, hi, _ = qp._fill(ev, prob.seed.ravel(), 0.3, 10.0)
+    A = sp.csr_matrix((qp._vals, (qp._A_rows, qp._A_cols)), shape=(qp.n_rows, qp.n_z))
+    block = slice(qp.n_x, qp.n_rows - (qp.n_z - qp.n_x))   # rows of the penalised terms
+    assert {"waypoint", "segment", "goal", "velocity", "acceleration", "torque"} <= set(
+        qp._blocks)
+    for _ in range(5):
+        x = prob.seed.ravel() + rng.normal(0.0, 0.05, qp.n_x)
+        ax = A[block, :qp.n_x] @ x
+        S = A[block, qp.n_x:].tocoo()      # one slack entry per row: its sense
+        rows = S.row
+        viol = np.where(S.data > 0, lo[block][rows] - ax[rows], ax[rows] - hi[block][rows])
+        want = np.zeros(qp.n_z - qp.n_x)
+        np.maximum.at(want, S.col, viol)
+        np.testing.assert_allclose(qp._residual_slacks(x, lo, hi), want, rtol=1e-12,
+                                   atol=1e-12)
+    at_seed = qp._residual_slacks(prob.seed.ravel(), lo, hi)
+    assert at_seed[qp._blocks["segment"].slack - qp.n_x].max() > 0     # something to compare
+    assert prob.smoothness(prob.seed) + 10.0 * float(qp.slack_coeff @ at_seed) == \
+        pytest.approx(prob.merit(ev, 10.0), rel=1e-9)
 
 
 def _pole_crossing_lines(pole, n):

@@ -14,12 +14,15 @@ once per solve and updated in place (its KKT pattern and symbolic factorisation 
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 import osqp
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from chekhov.trajopt.problem import Evaluation, TrajOptProblem
+from chekhov.trajopt.qp_kernels import fill_collision_rows, residual_slacks
 
 Array = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -41,6 +44,21 @@ class _Rows:
     @property
     def width(self) -> int:
         return int(self.cols.shape[1])
+
+
+class _BlockRows(NamedTuple):
+    """The blocks' rows as :func:`qp_kernels.residual_slacks` reads them: per block (B,) its
+    first global row, rows, width and first value's index; per row, one block after another,
+    its columns (``width`` each), sense (+1: ≥ row, -1: ≤ row) and slack (counted from the
+    first). All int64."""
+
+    start: IntArray
+    n_rows: IntArray
+    width: IntArray
+    value_at: IntArray
+    cols: IntArray
+    sense: IntArray
+    slack: IntArray
 
 
 class TrajOptQP:
@@ -83,6 +101,46 @@ class TrajOptQP:
         self.admm_iterations = 0
         self._l = np.zeros(self.n_rows)
         self._u = np.zeros(self.n_rows)
+        self._lower_x, self._upper_x = np.tile(problem.lower, T), np.tile(problem.upper, T)
+        self._constant_bounds()
+        self._block_rows = self._row_layout()
+
+    def _constant_bounds(self) -> None:
+        """The bounds that no step changes: the slacks' identity rows (s ≥ 0), the collision
+        rows' upper ones (none) and the velocity and acceleration rows (|finite difference|
+        ≤ limit)."""
+        self._l[self._rows:], self._u[self._rows:] = 0.0, INF
+        for name in ("waypoint", "segment"):
+            b = self._blocks.get(name)
+            if b is not None:
+                self._u[b.start:b.start + b.n] = INF
+        p = self.problem
+        for name, limit in (("velocity", p.velocity_limit),
+                            ("acceleration", p.acceleration_limit)):
+            b = self._blocks.get(name)
+            if b is None:
+                continue
+            tol = np.resize(limit, b.n // 2)
+            self._l[b.start:b.start + b.n:2], self._u[b.start:b.start + b.n:2] = -INF, tol
+            self._l[b.start + 1:b.start + b.n:2], self._u[b.start + 1:b.start + b.n:2] = -tol, INF
+
+    def _row_layout(self) -> _BlockRows:
+        """The blocks' rows as :func:`qp_kernels.residual_slacks` reads them."""
+        blocks = list(self._blocks.values())
+
+        def per_block(values: list[int]) -> IntArray:
+            return np.array(values, dtype=np.int64).reshape(-1)
+
+        def per_row(values: list[IntArray]) -> IntArray:
+            return np.concatenate(values).astype(np.int64) if values else \
+                np.zeros(0, dtype=np.int64)
+
+        return _BlockRows(per_block([b.start for b in blocks]), per_block([b.n for b in blocks]),
+                          per_block([b.width for b in blocks]),
+                          per_block([self.n_z + b.value_offset for b in blocks]),
+                          per_row([b.cols.ravel() for b in blocks]),
+                          per_row([b.sense for b in blocks]),
+                          per_row([b.slack - self.n_x for b in blocks]))
 
     def _add_blocks(self, problem: TrajOptProblem, xi: IntArray) -> None:
         """The row blocks of every penalised term: collision (one ≥ row and one slack per
@@ -163,56 +221,50 @@ class TrajOptQP:
         off0 = self.n_z  # identity values come first
         Qb = x_bar.reshape(T, K)
         # identity rows: trust region ∩ joint limits; fixed waypoints pinned
-        lo = np.maximum(np.tile(p.lower, T), x_bar - trust)
-        hi = np.minimum(np.tile(p.upper, T), x_bar + trust)
+        lo = np.maximum(self._lower_x, x_bar - trust)
+        hi = np.minimum(self._upper_x, x_bar + trust)
         lo[:K] = hi[:K] = p.q_start
         if p.fixed_goal:
             lo[-K:] = hi[-K:] = Qb[-1]
         lo_[:self.n_x], u[:self.n_x] = lo, hi
-        lo_[self._rows:], u[self._rows:] = 0.0, INF
         safe_w, safe_s = p.safety_margins()
         for name, b in self._blocks.items():
-            w = b.width
-            vb = vals[off0 + b.value_offset:off0 + b.value_offset + b.n * (w + 1)].reshape(
-                b.n, w + 1)
-            rs = slice(b.start, b.start + b.n)
             if name == "waypoint":
-                t, k = self._wp_t, self._wp_k
-                g = ev.grad_waypoint[t, k]
-                vb[:, :w] = g
-                lo_[rs] = safe_w[t] - ev.dist_waypoint[t, k] + np.einsum("rk,rk->r", g, Qb[t])
-                u[rs] = INF
+                fill_collision_rows(vals, lo_, off0 + b.value_offset, b.start, self._wp_t,
+                                    self._wp_k, ev.grad_waypoint, ev.dist_waypoint, safe_w,
+                                    Qb, False)
             elif name == "segment":
-                t, k = self._seg_t, self._seg_k
-                g = ev.grad_segment[t, k]
-                vb[:, :w] = g
-                seg = np.concatenate([Qb[:-1], Qb[1:]], axis=1)
-                lo_[rs] = safe_s[t] - ev.dist_segment[t, k] + np.einsum("rk,rk->r", g, seg[t])
-                u[rs] = INF
-            else:
-                if name == "goal":
-                    A = ev.goal_jacobian
-                    c = A @ Qb[-1] - ev.goal_error
-                    tol = p.goal_tolerance
-                elif name == "velocity":
-                    A, c, tol = None, np.zeros(b.n // 2), p.velocity_limit
-                elif name == "acceleration":
-                    A, c, tol = None, np.zeros(b.n // 2), p.acceleration_limit
-                else:  # torque
-                    A = ev.torque_jacobian.reshape(-1, 3 * K)
-                    win = np.concatenate([Qb[:-2], Qb[1:-1], Qb[2:]], axis=1)
-                    c = np.einsum("tkj,tj->tk", ev.torque_jacobian, win).ravel() - \
-                        ev.torque.ravel()
-                    tol = p.torque_limit
-                if A is not None:
-                    vb[0::2, :w] = A
-                    vb[1::2, :w] = A
-                tol = np.resize(tol, len(c))
-                lo_[b.start:b.start + b.n:2], u[b.start:b.start + b.n:2] = -INF, c + tol
-                lo_[b.start + 1:b.start + b.n:2] = c - tol
-                u[b.start + 1:b.start + b.n:2] = INF
+                fill_collision_rows(vals, lo_, off0 + b.value_offset, b.start, self._seg_t,
+                                    self._seg_k, ev.grad_segment, ev.dist_segment, safe_s,
+                                    Qb, True)
+            elif name in ("goal", "torque"):   # velocity and acceleration rows are constant
+                self._fill_linear(b, ev, Qb)
         q = np.concatenate([-p.config.proximal_weight * x_bar, mu * self.slack_coeff])
         return vals[self._order], lo_, u, q
+
+    def _fill_linear(self, b: _Rows, ev: Evaluation, Qb: Array) -> None:
+        """The goal's or the torques' rows, |A x - c| ≤ tol, linearised at Qb (T, K)."""
+        p = self.problem
+        K = p.dof
+        w = b.width
+        vb = self._vals[self.n_z + b.value_offset:self.n_z + b.value_offset
+                        + b.n * (w + 1)].reshape(b.n, w + 1)
+        if b is self._blocks.get("goal"):
+            A = ev.goal_jacobian
+            c = A @ Qb[-1] - ev.goal_error
+            tol = p.goal_tolerance
+        else:
+            A = ev.torque_jacobian.reshape(-1, 3 * K)
+            win = np.concatenate([Qb[:-2], Qb[1:-1], Qb[2:]], axis=1)
+            c = np.einsum("tkj,tj->tk", ev.torque_jacobian, win).ravel() - ev.torque.ravel()
+            tol = p.torque_limit
+        vb[0::2, :w] = A
+        vb[1::2, :w] = A
+        tol = np.resize(tol, len(c))
+        lo_, u = self._l, self._u
+        lo_[b.start:b.start + b.n:2], u[b.start:b.start + b.n:2] = -INF, c + tol
+        lo_[b.start + 1:b.start + b.n:2] = c - tol
+        u[b.start + 1:b.start + b.n:2] = INF
 
     def solve(self, ev: Evaluation, x_bar: Array, trust: float, mu: float,
               time_limit_s: float = 0.0) -> tuple[Array, float, str]:
@@ -264,21 +316,9 @@ class TrajOptQP:
     def _residual_slacks(self, x: Array, lo_: Array, u: Array) -> Array:
         """The smallest slacks that make every block row hold at x: the linearised model's
         violations (so the model objective is evaluated exactly at the clipped x)."""
-        s = np.zeros(self._n_slack)
-        Ax = np.zeros(self.n_rows)
-        vals = self._vals
-        off0 = self.n_z
-        for b in self._blocks.values():
-            w = b.width
-            vb = vals[off0 + b.value_offset:off0 + b.value_offset + b.n * (w + 1)].reshape(
-                b.n, w + 1)
-            ax = np.einsum("rw,rw->r", vb[:, :w], x[b.cols])
-            Ax[b.start:b.start + b.n] = ax
-            lo = lo_[b.start:b.start + b.n]
-            hi = u[b.start:b.start + b.n]
-            viol = np.where(b.sense > 0, lo - ax, ax - hi)
-            np.maximum.at(s, b.slack - self.n_x, viol)
-        return s
+        r = self._block_rows
+        return residual_slacks(self._vals, x, lo_, u, r.start, r.n_rows, r.width, r.value_at,
+                               r.cols, r.sense, r.slack, self._n_slack)
 
 
 def term_counts(ev: Evaluation) -> tuple[IntArray, IntArray]:
