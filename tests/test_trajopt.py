@@ -166,6 +166,17 @@ def test_qp_residual_slacks_match_its_assembled_rows(pole, rng):
     assert at_seed[qp._blocks["segment"].slack - qp.n_x].max() > 0     # something to compare
     assert prob.smoothness(prob.seed) + 10.0 * float(qp.slack_coeff @ at_seed) == \
         pytest.approx(prob.merit(ev, 10.0), rel=1e-9)
+    # the compiled merit against its numpy statement (violations, squared steps)
+    c = prob.config
+    coeff = {"collision": c.collision_coeff, "goal": c.goal_coeff, "velocity": c.limit_coeff,
+             "acceleration": c.limit_coeff, "torque": c.torque_coeff}
+    for Q in (prob.seed, prob.seed + rng.normal(0.0, 0.05, prob.seed.shape)):
+        e = prob.evaluate(Q)
+        v = prob.violations(e)
+        assert v["collision"].sum() > 0 and set(v) == set(coeff)
+        assert prob.merit(e, 7.0) == pytest.approx(
+            float(np.sum((np.diff(Q, axis=0) * prob.weights) ** 2))
+            + 7.0 * sum(coeff[k] * float(x.sum()) for k, x in v.items()), rel=1e-12)
 
 
 def _pole_crossing_lines(pole, n):

@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import pinocchio as pin
@@ -21,9 +22,18 @@ from chekhov.paths import resample_path
 from chekhov.robot.goal import Goal
 from chekhov.robot.robot import Robot
 from chekhov.trajopt.config import TrajOptConfig
+from chekhov.trajopt.kernels import excess_sum, hinge_sum, weighted_squared_steps
 from chekhov.world import World
 
 Array = NDArray[np.float64]
+
+
+def _read_only(a: Array) -> Array:
+    """a, made read-only (kept by a problem and handed out to every caller)."""
+    a.setflags(write=False)
+    return a
+
+
 # share of the goal tolerances the optimisation aims at (see Problem.goal_tolerance)
 GOAL_AIM = 0.9
 
@@ -118,15 +128,15 @@ class TrajOptProblem:
     def has_torque(self) -> bool:
         return self.has_dynamics and bool(np.isfinite(self.torque_limit).any())
 
-    @property
+    @cached_property
     def goal_tolerance(self) -> Array:
         """Per-component tolerances (6,) of the goal error that the optimisation aims at: a box
         inside ``GOAL_AIM`` times the tolerance balls, so that an answer the solver accepts
         (constraints met to its tolerance) meets the goal's own tolerance, as the planners'
         certification checks it (a path ending on the ball's surface would fail it by 1e-5)."""
         g = self.goal
-        return GOAL_AIM * np.repeat([g.position_tolerance, g.orientation_tolerance], 3) \
-            / np.sqrt(3.0)
+        return _read_only(GOAL_AIM * np.repeat([g.position_tolerance, g.orientation_tolerance],
+                                               3) / np.sqrt(3.0))
 
     # --- evaluation ---------------------------------------------------------------------
     def evaluate(self, Q: Array, timing: dict[str, float] | None = None,
@@ -202,7 +212,7 @@ class TrajOptProblem:
     # --- merit --------------------------------------------------------------------------
     def smoothness(self, Q: Array) -> float:
         """Σ_t ||W (q_{t+1} - q_t)||², rad²."""
-        return float(np.sum((np.diff(Q, axis=0) * self.weights) ** 2))
+        return float(weighted_squared_steps(np.asarray(Q, dtype=np.float64), self.weights))
 
     def violations(self, ev: Evaluation) -> dict[str, Array]:
         """Per-term violations (≥ 0) of the penalised constraints at an evaluation."""
@@ -223,13 +233,20 @@ class TrajOptProblem:
         return out
 
     def merit(self, ev: Evaluation, mu: float) -> float:
-        """The l1 merit: smoothness + μ Σ_blocks coeff · Σ violations."""
+        """The l1 merit: smoothness + μ Σ_blocks coeff · Σ violations (:meth:`violations`'
+        sums, compiled: the SQP asks for it twice a step)."""
         cfg = self.config
-        coeff = {"collision": cfg.collision_coeff, "goal": cfg.goal_coeff,
-                 "velocity": cfg.limit_coeff, "acceleration": cfg.limit_coeff,
-                 "torque": cfg.torque_coeff}
-        v = self.violations(ev)
-        return self.smoothness(ev.Q) + mu * sum(coeff[k] * float(x.sum()) for k, x in v.items())
+        safe_w, safe_s = self.safety_margins()
+        total = cfg.collision_coeff * (hinge_sum(safe_w, ev.dist_waypoint)
+                                       + hinge_sum(safe_s, ev.dist_segment))
+        if self.goal.is_pose:
+            total += cfg.goal_coeff * excess_sum(ev.goal_error[None], self.goal_tolerance)
+        if self.has_dynamics:
+            total += cfg.limit_coeff * (excess_sum(ev.velocity, self.velocity_limit)
+                                        + excess_sum(ev.acceleration, self.acceleration_limit))
+        if self.has_torque:
+            total += cfg.torque_coeff * excess_sum(ev.torque, self.torque_limit)
+        return self.smoothness(ev.Q) + mu * float(total)
 
     def required_clearance(self) -> tuple[Array, Array]:
         """The clearance (m) the collision constraint asks of each waypoint (T,) and segment
@@ -248,8 +265,14 @@ class TrajOptProblem:
         from a cabinet wall otherwise set the hinge against the goal: the end stopped 1-2
         mm short of the pose at every penalty ("infeasible", 40-80 ms, on 8 of 100 kitchen
         task cases), then a retry towards the seed's end configuration."""
+        return self._safety_margins
+
+    @cached_property
+    def _safety_margins(self) -> tuple[Array, Array]:
+        """:meth:`safety_margins`, computed once (the SQP asks for them three times a step)."""
         ends = () if self.fixed_goal else (1,)
-        return self._lowered_at_ends(self.config.safety_margin_m, ends)
+        waypoints, segments = self._lowered_at_ends(self.config.safety_margin_m, ends)
+        return _read_only(waypoints), _read_only(segments)
 
     def _lowered_at_ends(self, value: float, ends: tuple[int, ...]) -> tuple[Array, Array]:
         """(T,) and (T-1,) arrays of ``value`` m, lowered to ``end_clearance_m`` at each end

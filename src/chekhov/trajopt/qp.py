@@ -21,8 +21,8 @@ import osqp
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
+from chekhov.trajopt.kernels import fill_collision_rows, residual_slacks
 from chekhov.trajopt.problem import Evaluation, TrajOptProblem
-from chekhov.trajopt.qp_kernels import fill_collision_rows, residual_slacks
 
 Array = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -47,7 +47,7 @@ class _Rows:
 
 
 class _BlockRows(NamedTuple):
-    """The blocks' rows as :func:`qp_kernels.residual_slacks` reads them: per block (B,) its
+    """The blocks' rows as :func:`kernels.residual_slacks` reads them: per block (B,) its
     first global row, rows, width and first value's index; per row, one block after another,
     its columns (``width`` each), sense (+1: ≥ row, -1: ≤ row) and slack (counted from the
     first). All int64."""
@@ -125,7 +125,7 @@ class TrajOptQP:
             self._l[b.start + 1:b.start + b.n:2], self._u[b.start + 1:b.start + b.n:2] = -tol, INF
 
     def _row_layout(self) -> _BlockRows:
-        """The blocks' rows as :func:`qp_kernels.residual_slacks` reads them."""
+        """The blocks' rows as :func:`kernels.residual_slacks` reads them."""
         blocks = list(self._blocks.values())
 
         def per_block(values: list[int]) -> IntArray:
