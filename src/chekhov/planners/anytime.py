@@ -73,6 +73,8 @@ class AnytimeRun:
         self.best_seed: Array | None = None
         self.best_info: dict[str, object] = {}
         self.rejected: list[tuple[Stage, PlanStatus, str]] = []
+        # paths (T, K) shortcut to the end in this query, by their bytes: the shortcut
+        self.shortcuts: dict[bytes, Array] = {}
         self._candidates: list[_Candidate] = []
         # the query the offers are certified for (module docstring)
         self._offer_query = replace(query, time_limit_s=query.time_limit_s

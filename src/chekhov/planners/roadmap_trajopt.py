@@ -234,7 +234,7 @@ class RoadmapTrajOpt(PlannerBase):
         # with the route as the answer, the shortcut must leave the final check its time
         stop = query.deadline if run.best is None else run.offer_deadline - FINISH_RESERVE_S
         t = time.perf_counter()
-        seed = min((self._shortcut(p, query, stop) for p in paths), key=path_length)
+        seed = min((self._shortcut(run, p, stop) for p in paths), key=path_length)
         run.timing["shortcut"] = time.perf_counter() - t
         run.report(Stage.SHORTCUT, PlanStatus.SOLVED, run.timing["shortcut"], seed)
         run.offer(seed, Stage.SHORTCUT, seed=seed,
@@ -275,13 +275,24 @@ class RoadmapTrajOpt(PlannerBase):
         run.report(Stage.REPAIR, outcome, r.time_s, r.path, scalar_items(r.info))
         return [] if r.path is None else [r.path]
 
-    def _shortcut(self, path: Array, query: PlanQuery, stop: float | None = None) -> Array:
+    def _shortcut(self, run: AnytimeRun, path: Array, stop: float | None = None) -> Array:
         """``path`` shortcut (when ``shortcut`` is on) until ``stop`` (perf_counter s; the
-        query's deadline by default)."""
-        deadline = query.deadline if stop is None else stop
-        return shortcut_path(self.world.fast, path, deadline=deadline,
-                             clearance_m=self.config.shortcut_clearance_m) \
-            if self.config.shortcut else path
+        query's deadline by default). A route shortcut before in this query, to the end, is
+        not shortcut again (the shortcut is deterministic, the world the same): the routes
+        stage's routes often include the first answer's (48 of 362 shortcuts of 60
+        shelf_boxes task cases, 0.56 of 4.4 ms a case)."""
+        if not self.config.shortcut:
+            return path
+        deadline = run.query.deadline if stop is None else stop
+        key = path.tobytes()
+        done = run.shortcuts.get(key)
+        if done is not None:
+            return done
+        short = shortcut_path(self.world.fast, path, deadline=deadline,
+                              clearance_m=self.config.shortcut_clearance_m)
+        if time.perf_counter() < deadline:    # not cut short
+            run.shortcuts[key] = short
+        return short
 
     # --- improvements ---------------------------------------------------------------------
     def _improve(self, run: AnytimeRun, seed: Array | None, seed_from: Stage | None) -> None:
@@ -338,7 +349,7 @@ class RoadmapTrajOpt(PlannerBase):
         for route in routes:
             if _line_length(route) >= bound - 1e-9:
                 break
-            path = self._shortcut(route, query, stop)
+            path = self._shortcut(run, route, stop)
             shortcut += 1
             if path_length(path) < bound - 1e-9:
                 best, bound = path, path_length(path)
