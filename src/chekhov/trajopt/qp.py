@@ -238,18 +238,19 @@ class TrajOptQP:
                                     self._seg_k, ev.grad_segment, ev.dist_segment, safe_s,
                                     Qb, True)
             elif name in ("goal", "torque"):   # velocity and acceleration rows are constant
-                self._fill_linear(b, ev, Qb)
+                self._fill_linear(name, b, ev, Qb)
         q = np.concatenate([-p.config.proximal_weight * x_bar, mu * self.slack_coeff])
         return vals[self._order], lo_, u, q
 
-    def _fill_linear(self, b: _Rows, ev: Evaluation, Qb: Array) -> None:
-        """The goal's or the torques' rows, |A x - c| ≤ tol, linearised at Qb (T, K)."""
+    def _fill_linear(self, name: str, b: _Rows, ev: Evaluation, Qb: Array) -> None:
+        """The goal's or the torques' rows (``name`` "goal" / "torque"), |A x - c| ≤ tol,
+        linearised at Qb (T, K)."""
         p = self.problem
         K = p.dof
         w = b.width
         vb = self._vals[self.n_z + b.value_offset:self.n_z + b.value_offset
                         + b.n * (w + 1)].reshape(b.n, w + 1)
-        if b is self._blocks.get("goal"):
+        if name == "goal":
             A = ev.goal_jacobian
             c = A @ Qb[-1] - ev.goal_error
             tol = p.goal_tolerance
