@@ -210,3 +210,34 @@ def test_a_start_in_contact_free_proximity_is_valid(world):
         finally:
             world.set_obstacles({})
     pytest.fail("no start near an object found")
+
+
+@pytest.mark.parametrize("given_steps", [False, True])
+def test_decision_margins_are_the_pairs_bounds(world, given_steps):
+    """The decision's margins, computed per motion-weight row in one compiled call, are what
+    the module docstring states per collision pair: the pair's largest motion bound L_p of a
+    step between samples, its margin mu_p >= L_p / 2 (a power of the grid, + the slack, within
+    the grid's factor), and each sphere group's screen margin the largest mu_p of the pairs of
+    its geometry — computed here pair by pair, with the exact checker's pairs."""
+    rng = np.random.default_rng(11)
+    fast, exact = world.fast, world.exact
+    W, row = exact.motion_weights
+    pairs = exact.collision_pairs
+    geometry = fast.spheres.geometries[fast.packed.groups.start[:-1]]
+    for _ in range(20):
+        P = world.robot.sample_uniform(rng, int(rng.integers(2, 12))) * rng.uniform(0.01, 1.0)
+        steps = rng.normal(0.0, 0.01, (4, world.robot.dof)) if given_steps else None
+        substeps = int(rng.choice([0, 10, 100]))
+        coal_ = path_check._Coal.make(fast, exact, P, substeps, steps)
+        coal_._pair_arrays()
+        moves = np.abs(steps) if given_steps else np.abs(np.diff(P, axis=0)) / (substeps + 1)
+        L = np.array([max(float(m @ W[row[p]]) for m in moves) for p in range(len(pairs))])
+        np.testing.assert_allclose(coal_.L, np.maximum(L, 1e-12), rtol=1e-12)
+        half = 0.5 * coal_.L
+        assert np.all(coal_.mu >= half + path_check.MARGIN_SLACK - 1e-18)
+        assert np.all(coal_.mu <= half * 2 ** (1 / 8) * (1 + 1e-12) + path_check.MARGIN_SLACK)
+        pad = [max((coal_.mu[p] for p in range(len(pairs)) if g in pairs[p]), default=0.0)
+               for g in geometry]
+        np.testing.assert_array_equal(coal_.pad, pad)
+        np.testing.assert_array_equal(
+            coal_.grow, np.maximum(coal_.pad - fast.robot.description.spheres.padding, 0.0))

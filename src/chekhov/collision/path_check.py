@@ -434,11 +434,6 @@ def _group_rows(fast: FastChecker, exact: ExactChecker,
     return group_rows
 
 
-def _round_up(x: Array | float) -> Array:
-    """x (m, > 0) rounded up to powers of :data:`_GRID`."""
-    return np.asarray(_GRID ** np.ceil(np.log(np.maximum(x, 1e-12)) / math.log(_GRID)))
-
-
 def _motion_free(exact: ExactChecker, pairs: NDArray[np.int64], Wc: Array, qa: Array,
                  da: Array, qb: Array, check_time: Callable[[], None]) -> bool:
     """Whether the collision pairs ``pairs`` (C,) stay apart along the straight motion
