@@ -66,7 +66,6 @@ def clear_for(d, g, r, curve, step, dq, parent, gj, axis, Rc, pc, gwc
     return int(min(max(local * (1.0 - 1e-9), d / step), 1e15))
 
 
-
 @njit(cache=True, nogil=True)
 def decision_margins(P, diff, W, scale, touches, padding, grid, slack
                      ):  # pragma: no cover - compiled

@@ -120,9 +120,7 @@ class TrajOptQP:
             b = self._blocks.get(name)
             if b is None:
                 continue
-            tol = np.resize(limit, b.n // 2)
-            self._l[b.start:b.start + b.n:2], self._u[b.start:b.start + b.n:2] = -INF, tol
-            self._l[b.start + 1:b.start + b.n:2], self._u[b.start + 1:b.start + b.n:2] = -tol, INF
+            self._band(b, np.zeros(b.n // 2), limit)
 
     def _row_layout(self) -> _BlockRows:
         """The blocks' rows as :func:`kernels.residual_slacks` reads them."""
@@ -261,11 +259,16 @@ class TrajOptQP:
             tol = p.torque_limit
         vb[0::2, :w] = A
         vb[1::2, :w] = A
+        self._band(b, c, tol)
+
+    def _band(self, b: _Rows, c: Array, tol: Array | float) -> None:
+        """Block b's bounds for |a x - c| ≤ tol, c (n / 2,): each term's ≤ row (a x - s ≤
+        c + tol) then its ≥ row (a x + s ≥ c - tol); ``tol`` repeated over the terms."""
         tol = np.resize(tol, len(c))
-        lo_, u = self._l, self._u
-        lo_[b.start:b.start + b.n:2], u[b.start:b.start + b.n:2] = -INF, c + tol
-        lo_[b.start + 1:b.start + b.n:2] = c - tol
-        u[b.start + 1:b.start + b.n:2] = INF
+        rows = slice(b.start, b.start + b.n, 2)
+        after = slice(b.start + 1, b.start + b.n, 2)
+        self._l[rows], self._u[rows] = -INF, c + tol
+        self._l[after], self._u[after] = c - tol, INF
 
     def solve(self, ev: Evaluation, x_bar: Array, trust: float, mu: float,
               time_limit_s: float = 0.0) -> tuple[Array, float, str]:
