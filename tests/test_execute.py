@@ -218,7 +218,7 @@ def test_a_moving_arm_whose_stop_hits_the_scene_escapes_exactly_free(world, limi
         _, Q, _ = _sampled(stop, 0.0, stop.t_end)
         if exact_path_decision(world.fast, world.exact, Q, 2).valid:
             continue
-        for move in evader.escapes(start, 0.0, {}):
+        for move in evader.escapes(start, 0.0):
             ts, Q, V = _sampled(move, 0.0, move.t_end + 0.01)
             if exact_path_decision(world.fast, world.exact, Q, 2).valid:
                 assert robot.within_limits(Q, tol=1e-6).all() and _fd_ok(ts, Q, V, limits)
@@ -270,13 +270,13 @@ def test_a_kicked_arm_about_to_hit_the_scene_swerves_exactly_free(world, limits)
     swerves = 0
     for _ in range(60):
         start = _heading_into_the_scene(world, limits, rng)
-        move = swerver.immediate([], start, 0.0, {}, None)
+        move = swerver.immediate([], start, 0.0, None)
         if move.pieces[0].kind != "swerve":
             assert move.pieces[0].kind == "brake"        # the stop, the last resort
             continue
         swerves += 1
         ts, Q, V = _sampled(move, 0.0, move.t_end + 0.01)
-        whole = evader.safe_in_time([move], 0.0, {}, 0.0)[0]
+        whole = evader.safe_in_time([move], 0.0, 0.0)[0]
         span = ts <= (move.t_end if whole else move.pieces[0].t_end)
         assert exact_path_decision(world.fast, world.exact, Q[span], 2).valid
         assert robot.within_limits(Q, tol=1e-6).all() and _fd_ok(ts, Q, V, limits)
@@ -299,7 +299,7 @@ def test_the_swerve_filter_keeps_every_swerve_that_is_safe_in_time(world, limits
     evader = _seeded_evader(world, tracks, limits)
     swerver = Swerver(evader)
     seen = predicted_obstacles(tracks, t0, c.horizon_s, c.margin_m)
-    packs = evader.windows(t0, seen, 0.0)
+    packs = evader.windows(t0, 0.0)
     world.fast.set_obstacles(seen)
     rng = np.random.default_rng(0)
     safe_total = dropped_by_union = 0
@@ -314,7 +314,7 @@ def test_the_swerve_filter_keeps_every_swerve_that_is_safe_in_time(world, limits
             piece = accelerating(now, t0, a, SWERVE_S, limits)
             stop = stop_from(piece.sample(SWERVE_S), piece.t_end, limits, bounds)
             moves.append(Motion((piece, *stop.pieces)))
-        safe = evader.safe_in_time(moves, t0, seen, 0.0)
+        safe = evader.safe_in_time(moves, t0, 0.0)
         assert not (safe & ~clear).any()
         union = np.array([world.fast.valid(m.positions(t0, t0 + SWERVE_S, c.check_dt_s)[1])
                           .all() for m in moves])
@@ -374,7 +374,7 @@ def test_a_kicked_arm_whose_join_back_is_free_is_joined_back_at_once(world, limi
         if back is None or not world.fast.valid(back.positions(0.0, back.t_end + 0.1,
                                                                0.01)[1]).all():
             continue
-        assert swerver.immediate([back], start, 0.0, {}, None) is back
+        assert swerver.immediate([back], start, 0.0, None) is back
         joined += 1
     assert joined >= 5
 
@@ -439,9 +439,9 @@ def test_the_fast_checkers_false_alarms_are_not_taken_for_an_arm_in_the_scene(wo
             mid = 0.5 * (lo + hi)
             lo, hi = (mid, hi) if world.exact.is_valid(q0 + mid * (q1 - q0)) else (lo, mid)
         free, hit = q0 + lo * (q1 - q0), q0 + hi * (q1 - q0)
-        assert evader.in_scene(hit, {})
+        assert evader.in_scene(hit)
         if not world.fast.valid(free[None])[0]:
-            assert not evader.in_scene(free, {})
+            assert not evader.in_scene(free)
             false_alarms += 1
             if false_alarms == 5:
                 break
@@ -762,7 +762,7 @@ def test_a_resting_arm_dodges_a_forearm_coming_at_it(world, limits):
     assert len(directed) > 0
     assert max(gap(q) for q in directed) > gap(q0) + 0.08
     z = np.zeros_like(q0)
-    move = evader.dodge(State(q0, z, z), t0, {})
+    move = evader.dodge(State(q0, z, z), t0)
     assert move is not None and isinstance(move, Motion)
     ts, Q = move.positions(t0, ball.t_end, DT)
     from chekhov.execute.evaluate import TrueWorld
@@ -776,6 +776,40 @@ def _seeded_evader(world, tracks, limits, seed=3):
     c = CONFIG.executor
     return Evader(world, tracks, EvadeSettings(c.horizon_s, c.margin_m, c.check_dt_s), limits,
                   Bounds(world.robot.lower, world.robot.upper), seed=seed)
+
+
+def test_safe_in_time_is_each_samples_check_in_the_windows_holding_it(world, limits):
+    """``safe_in_time`` (every motion's samples at once, coarse ones first, a motion dropped
+    at its first unsafe window) against its statement sample by sample: a motion is safe when
+    within the limits and each check step's configuration is free of the sweep of every
+    window whose closed span holds it (the last window's from its start on) — moves to the
+    dodge targets of an arm moving beside a ball flying at its elbow, some safe, some not."""
+    from chekhov.execute.evade import window_edges
+    from chekhov.execute.motion import Motion
+    q0, _, tracks, t0 = _ball_at_the_elbow(world, 0.06)
+    c = CONFIG.executor
+    evader = _seeded_evader(world, tracks, limits)
+    bounds = Bounds(world.robot.lower, world.robot.upper)
+    rng = np.random.default_rng(21)
+    z = np.zeros_like(q0)
+    now = State(q0, rng.uniform(-0.2, 0.2, len(q0)) * limits.velocity, z)
+    moves = [Motion((p,)) for p in (ruckig_piece(now, State(q, z, z), t0, limits, "dodge",
+                                                 bounds) for q in evader.targets(now, t0))
+             if p is not None]
+    safe = evader.safe_in_time(moves, t0, 0.0)
+    packs = evader.windows(t0, 0.0)
+    edges = t0 + window_edges(c.horizon_s)
+    expected = []
+    for move in moves:
+        ts, Q = move.positions(t0, max(edges[-1], move.t_end), c.check_dt_s)
+        ok = bool(world.robot.within_limits(Q).all())
+        for k, packed in enumerate(packs):
+            last = k == len(packs) - 1
+            held = (ts >= edges[k] - 1e-9) & ((ts <= edges[k + 1] + 1e-9) | last)
+            ok = ok and all(world.fast.valid_in(packed, q[None])[0] for q in Q[held])
+        expected.append(ok)
+    assert np.array_equal(safe, expected)
+    assert 5 <= int(safe.sum()) <= len(moves) - 5
 
 
 def test_the_dodge_is_the_nearest_target_whose_move_is_safe_sample_by_sample(world, limits):
@@ -792,10 +826,10 @@ def test_the_dodge_is_the_nearest_target_whose_move_is_safe_sample_by_sample(wor
         return _seeded_evader(world, tracks, limits)
     z = np.zeros_like(q0)
     now = State(q0, z, z)
-    move = evader().dodge(now, t0, {})
+    move = evader().dodge(now, t0)
     reference = evader()
     targets = reference.targets(now, t0)
-    packs = reference.windows(t0, {})
+    packs = reference.windows(t0)
     expected = None
     for q_r in targets:
         piece = ruckig_piece(now, State(q_r, z, z), t0, limits, "dodge", bounds)
@@ -847,7 +881,7 @@ def test_a_fast_arm_dodges_around_where_it_stops(world, planner, limits):
     assert any(truth.collides(stop.sample(float(t)).q, float(t)) for t in ts)
     evader = _seeded_evader(world, tracks, limits)
     assert float(np.abs(evader.stop_point(now, t0) - now.q).max()) > STOP_APART_RAD
-    move = evader.dodge(now, t0, {})
+    move = evader.dodge(now, t0)
     assert move is not None
     reference = _seeded_evader(world, tracks, limits)
     targets = reference.targets(now, t0)
@@ -871,16 +905,16 @@ def test_a_dodge_search_cut_at_its_deadline_goes_on_to_the_same_answer(world, li
         return _seeded_evader(world, tracks, limits)
     z = np.zeros_like(q0)
     now = State(q0, z, z)
-    whole = evader().dodge(now, t0, {})
+    whole = evader().dodge(now, t0)
     assert whole is not None
     cut, move, calls = evader(), None, 0
     while move is None and calls < 64:
-        move = cut.dodge(now, t0, {}, deadline=0.0, resume=calls > 0)   # always past
+        move = cut.dodge(now, t0, deadline=0.0, resume=calls > 0)   # always past
         calls += 1
     assert move is not None and np.allclose(move.end.q, whole.end.q, atol=1e-9)
     assert calls > 1, "the search never had to go on: the test shows nothing"
     fresh = evader()
-    assert fresh.dodge(now, t0, {}, deadline=0.0) is None and fresh.cut_short
+    assert fresh.dodge(now, t0, deadline=0.0) is None and fresh.cut_short
 
 
 def test_an_obstacle_on_the_goal_is_answered_at_once_by_holding_short_of_it(world, planner,

@@ -107,3 +107,53 @@ def test_set_obstacles_refuses_a_scene_objects_name(worlds):
     name = world.scene.objects[0].name
     with pytest.raises(KeyError, match=name):
         world.set_obstacles({name: (Shape("sphere", (0.1,)), np.eye(4))})
+
+
+def test_window_packs_are_what_set_obstacles_packs():
+    """The executive's time windows are packed beside the fast checker's obstacles
+    (``predicted_primitives`` + ``FastChecker.packed_with``), not through obstacle objects and
+    ``set_obstacles``: the same arrays as ``set_obstacles(predicted_obstacles(...))``, the
+    same decisions, the checker itself unchanged — with a scene object of its own that is
+    dynamic (kept by both, and followed when it moves)."""
+    from dataclasses import replace
+
+    from chekhov.execute.obstacles import (
+        ObstacleTracks,
+        predicted_obstacles,
+        predicted_primitives,
+    )
+    base = World.load("tabletop_pole").scene
+    scene = replace(base, objects=tuple(replace(o, dynamic=o.name == "pole")
+                                        for o in base.objects))
+    w = World(scene)
+    fast = w.fast
+    rng = np.random.default_rng(11)
+    Q = w.robot.sample_uniform(rng, 3000)
+    tracks = ObstacleTracks()
+    first, later = _obstacles(rng, 3), _obstacles(rng, 3)
+    tracks.update(first, 1.0)
+    moved = {n: (s, T.copy()) for n, (s, T) in first.items()}
+    for _, T in list(moved.values())[:2]:             # two move on, the third is seen once
+        T[:3, 3] += rng.uniform(-0.04, 0.04, 3)
+    tracks.update({**dict(list(moved.items())[:2]), "late": later["o2"]}, 1.0 + 1 / 30)
+    pole = w.scene.object("pole").T_world_obj()
+    for t0, horizon, margin, bound, shift in ((1.05, 0.03, 0.02, 1.0, 0.0),
+                                              (1.1, 0.1, 0.0, 0.0, 0.0),
+                                              (1.2, 0.5, 0.05, 1.0, 0.3)):
+        if shift:
+            T = pole.copy()
+            T[1, 3] += shift
+            fast.move_obstacle("pole", T)
+        version, packed = fast.obstacles_version, fast.packed
+        window = fast.packed_with(predicted_primitives(tracks, t0, horizon, margin,
+                                                       speed_bound_m_s=bound))
+        assert fast.obstacles_version == version and fast.packed is packed
+        fast.set_obstacles(predicted_obstacles(tracks, t0, horizon, margin,
+                                               speed_bound_m_s=bound))
+        for field in ("dynamic", "obstacles"):
+            for a, b in zip(getattr(window, field), getattr(fast.packed, field), strict=True):
+                assert a.dtype == b.dtype and np.array_equal(a, b), field
+        free = fast.valid(Q)
+        assert np.array_equal(fast.valid_in(window, Q), free)
+        fast.set_obstacles({})
+        assert (free < fast.valid(Q)).sum() > 10       # the sweeps do block configurations

@@ -16,11 +16,13 @@ import itertools
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
 from chekhov.collision.packed import PackedWorld
+from chekhov.collision.primitives import pack_primitives
 from chekhov.execute.motion import (
     Bounds,
     Motion,
@@ -30,12 +32,7 @@ from chekhov.execute.motion import (
     stop_from,
     stop_time,
 )
-from chekhov.execute.obstacles import (
-    Obstacles,
-    ObstacleTracks,
-    predicted_obstacles,
-    to_segment,
-)
+from chekhov.execute.obstacles import ObstacleTracks, predicted_primitives, to_segment
 from chekhov.timing import Limits
 from chekhov.world import World
 
@@ -112,9 +109,30 @@ class EvadeSettings:
     obstacle_speed_m_s: float = 0.0
 
 
+class Samples(NamedTuple):
+    """Several motions' configurations, one after another: time ``t`` (N,) s, positions ``Q``
+    (N, K) rad, ``owner`` (N,) the motion's index, ``step`` (N,) the sample's index within
+    its motion."""
+
+    t: Array
+    Q: Array
+    owner: NDArray[np.int64]
+    step: NDArray[np.int64]
+
+    @classmethod
+    def of(cls, samples: list[tuple[Array, Array]]) -> Samples:
+        """From each motion's (times (n,), positions (n, K)), in order."""
+        n = np.array([len(ts) for ts, _ in samples], dtype=np.int64)
+        K = samples[0][1].shape[1] if samples else 0
+        return cls(np.concatenate([ts for ts, _ in samples]) if samples else np.zeros(0),
+                   np.vstack([Q for _, Q in samples]) if samples else np.zeros((0, K)),
+                   np.repeat(np.arange(len(n)), n), np.arange(n.sum()) - np.repeat(
+                       np.cumsum(n) - n, n))
+
+
 class Evader:
-    """Judges and makes evasive motions in ``world`` (its fast checker's dynamic obstacles are
-    set while judging and put back to ``restore()``'s obstacles after)."""
+    """Judges and makes evasive motions in ``world`` (its fast checker is not changed: the
+    predicted sweeps are packed beside its obstacles, ``FastChecker.packed_with``)."""
 
     def __init__(self, world: World, tracks: ObstacleTracks, settings: EvadeSettings,
                  limits: Limits, bounds: Bounds, seed: int = 0) -> None:
@@ -125,13 +143,12 @@ class Evader:
         self._windows_of: object = None
         self._cut: _CutSearch | None = None
 
-    def windows(self, t0: float, restore: Obstacles, margin_m: float | None = None
-                ) -> list[PackedWorld]:
+    def windows(self, t0: float, margin_m: float | None = None) -> list[PackedWorld]:
         """The fast checker's packed world holding each window's (:func:`window_edges`)
-        predicted sweep from t0 (s) over the horizon (inflated by ``margin_m``, m; the settings' by
-        default), for :meth:`safe_in_time`. The fast checker gets ``restore`` back after.
-        Kept until the tracks change (a sensor frame): a tick's reactions ask for the same
-        windows several times (~1 ms each)."""
+        predicted sweep from t0 (s) over the horizon (inflated by ``margin_m``, m; the settings'
+        by default), for :meth:`safe_in_time`; the checker itself is not changed
+        (``FastChecker.packed_with``). Kept until the tracks change (a sensor frame): a
+        tick's reactions ask for the same windows several times."""
         c, fast = self.settings, self.world.fast
         margin = c.margin_m if margin_m is None else margin_m
         if self._windows_of is not self.tracks.tracks:
@@ -139,22 +156,16 @@ class Evader:
         kept = self._windows.get((t0, margin))
         if kept is not None:
             return kept
-        packs: list[PackedWorld] = []
-        try:
-            edges = window_edges(c.horizon_s)
-            for a, b in itertools.pairwise(edges):
-                fast.set_obstacles(predicted_obstacles(
-                    self.tracks, t0 + a, b - a, margin,
-                    speed_bound_m_s=c.obstacle_speed_m_s))
-                packs.append(fast.packed)
-        finally:
-            fast.set_obstacles(restore)
+        edges = window_edges(c.horizon_s)
+        packs = [fast.packed_with(predicted_primitives(self.tracks, t0 + a, b - a, margin,
+                                                       speed_bound_m_s=c.obstacle_speed_m_s))
+                 for a, b in itertools.pairwise(edges)]
         if len(self._windows) >= 8:
             self._windows.clear()
         self._windows[(t0, margin)] = packs
         return packs
 
-    def safe_in_time(self, motions: list[Motion], t0: float, restore: Obstacles,
+    def safe_in_time(self, motions: list[Motion], t0: float,
                      margin_m: float | None = None, *,
                      windows: list[PackedWorld] | None = None) -> NDArray[np.bool_]:
         """Which ``motions`` (all starting at t0, s) are within the limits and free of the
@@ -163,7 +174,7 @@ class Evader:
         (:meth:`windows`, made here unless given), and the motions' configurations of that
         window are checked against it; the last window's sweep also holds for the rest of
         each motion."""
-        packs = windows if windows is not None else self.windows(t0, restore, margin_m)
+        packs = windows if windows is not None else self.windows(t0, margin_m)
         dt, robot = self.settings.check_dt_s, self.world.robot
         # each motion sampled once, every dt from t0 to past the horizon; every COARSE-th
         # sample checked first (most candidates collide, and are dropped on fewer checks),
@@ -171,36 +182,39 @@ class Evader:
         # every such motion in one call
         t_horizon = t0 + window_edges(self.settings.horizon_s)[-1]
         samples = [m.positions(t0, max(t_horizon, m.t_end), dt) for m in motions]
-        ok = np.array([bool(robot.within_limits(Q).all()) for _, Q in samples], dtype=bool)
-        for coarse in (True, False):
-            picked = [(ts, Q, (np.arange(len(ts)) % COARSE == 0) == coarse)
-                      for ts, Q in samples]
-            self.drop_unsafe(ok, picked, packs, t0)
+        flat = Samples.of(samples)
+        ok = np.ones(len(motions), dtype=bool)
+        ok[flat.owner[~robot.within_limits(flat.Q)]] = False
+        coarse = flat.step % COARSE == 0
+        for pick in (coarse, ~coarse):
+            self.drop_unsafe(ok, flat, pick, packs, t0)
         return ok
 
-    def drop_unsafe(self, ok: NDArray[np.bool_], picked: list[tuple[Array, Array, NDArray[
-            np.bool_]]], packs: list[PackedWorld], t0: float) -> None:
-        """Set ``ok[i]`` False for each motion i still ok whose configurations picked (times
-        (N,) s, positions (N, K) rad, which of them (N,)) collide with their window's sweep
-        (the last window's from its start on)."""
+    def drop_unsafe(self, ok: NDArray[np.bool_], samples: Samples, pick: NDArray[np.bool_],
+                    packs: list[PackedWorld], t0: float) -> None:
+        """Set ``ok[i]`` False for each motion i still ok whose ``samples`` picked (``pick``
+        (N,)) collide with their window's sweep (the last window's from its start on); a
+        sample on the edge of two windows is checked in both."""
         fast, edges = self.world.fast, window_edges(self.settings.horizon_s)
+        ts = samples.t
         for k, packed in enumerate(packs):
-            a, b = t0 + edges[k] - 1e-9, t0 + edges[k + 1] + 1e-9
-            last = k == len(packs) - 1
-            rows = [(i, Q[pick & (ts >= a) & ((ts <= b) | last)])
-                    for i, (ts, Q, pick) in enumerate(picked) if ok[i]]
-            if not rows:
+            if not ok.any():
                 return
-            free = fast.valid_in(packed, np.vstack([Q for _, Q in rows]))
-            owner = np.repeat([i for i, _ in rows], [len(Q) for _, Q in rows])
-            ok[owner[~free]] = False
+            a, b = t0 + edges[k] - 1e-9, t0 + edges[k + 1] + 1e-9
+            rows = pick & ok[samples.owner] & (ts >= a)
+            if k < len(packs) - 1:
+                rows &= ts <= b
+            rows = np.flatnonzero(rows)
+            if len(rows):
+                free = fast.valid_in(packed, samples.Q[rows])
+                ok[samples.owner[rows[~free]]] = False
 
     @property
     def cut_short(self) -> bool:
         """Whether the last dodge search stopped at its deadline (it can be resumed)."""
         return self._cut is not None
 
-    def dodge(self, now: State, t0: float, restore: Obstacles,
+    def dodge(self, now: State, t0: float,
               deadline: float | None = None, resume: bool = False) -> Motion | None:
         """A Ruckig move from ``now`` at clock time t0 (s) to the nearest of the dodge targets
         (:meth:`targets`) that is safe in time (:meth:`safe_in_time`) with the margin, else
@@ -223,7 +237,7 @@ class Evader:
         made: dict[int, Motion | None] = {}
         chunks = 0
         for margin in (None, 0.0):
-            packs = self.windows(t0, restore, margin)
+            packs = self.windows(t0, margin)
             live = np.flatnonzero(self.world.fast.valid_in(packs[-1], targets) &
                                   ~tried[margin])
             for c0 in range(0, len(live), DODGE_CHUNK):
@@ -238,7 +252,7 @@ class Evader:
                                              "dodge", self.bounds)
                         made[i] = None if piece is None else Motion((piece,))
                 moves = [m for m in (made[i] for i in chunk) if m is not None]
-                safe = self.safe_in_time(moves, t0, restore, windows=packs)
+                safe = self.safe_in_time(moves, t0, windows=packs)
                 if safe.any():
                     return moves[int(np.argmax(safe))]
                 tried[margin][chunk] = True
@@ -248,23 +262,19 @@ class Evader:
         """Drop a dodge search cut short (the next search starts afresh)."""
         self._cut = None
 
-    def in_scene(self, q: Array, restore: Obstacles) -> bool:
+    def in_scene(self, q: Array) -> bool:
         """Whether configuration q (K,) rad is in collision with the static scene: the fast
-        checker (no dynamic obstacles; ``restore``'s put back after) says so, and the exact
+        checker without dynamic obstacles (the scene's own aside) says so, and the exact
         checker does not call q free (with whatever dynamic obstacles it holds, a free answer
         is free of the static scene too). The fast checker's collisions can be false alarms
         (it proves "free" only): a kicked arm beside a kitchen cabinet, free by the exact
         checker, was taken as in it, and its way out searched for ~100 ms in one step while
         the loop ran the arm into the cabinet."""
         fast = self.world.fast
-        try:
-            fast.set_obstacles({})
-            alarm = not bool(fast.valid(q[None])[0])
-        finally:
-            fast.set_obstacles(restore)
+        alarm = not bool(fast.valid_in(fast.packed_with(pack_primitives([])), q[None])[0])
         return alarm and not self.world.exact.is_valid(q)
 
-    def unstick(self, now: State, t0: float, restore: Obstacles) -> Motion | None:
+    def unstick(self, now: State, t0: float) -> Motion | None:
         """Out of a collision with the static scene the arm is already in (a stop after a
         kick can end in it; then no dodge is safe, since each starts in collision, and no
         plan starts; see :meth:`in_scene`):
@@ -274,7 +284,7 @@ class Evader:
         target on a tie, out within :data:`UNSTICK_S`; None when none is."""
         z, dt = np.zeros_like(now.q), self.settings.check_dt_s
         targets = self.targets(now, t0)
-        packs = self.windows(t0, restore, 0.0)
+        packs = self.windows(t0, 0.0)
         best: tuple[int, Motion] | None = None
         for i in np.flatnonzero(self.world.fast.valid_in(packs[-1], targets)):
             piece = ruckig_piece(now, State(targets[i], z, z), t0, self.limits, "dodge",
@@ -299,7 +309,7 @@ class Evader:
                     break
         return None if best is None else best[1]
 
-    def escapes(self, now: State, t0: float, restore: Obstacles,
+    def escapes(self, now: State, t0: float,
                 deadline: float | None = None) -> Iterator[Motion]:
         """The last resort when no dodge is safe and neither is stopping: Ruckig moves from
         ``now`` (at clock time t0, s) to the state that a constant acceleration drawn at
@@ -325,22 +335,21 @@ class Evader:
                     end = piece.sample(piece.t_end - piece.t_start)
                     stop = stop_from(end, piece.t_end, lim, self.bounds)
                     moves.append(Motion((piece, *stop.pieces)))
-            safe = self.safe_in_time(moves, t0, restore, 0.0)
+            safe = self.safe_in_time(moves, t0, 0.0)
             yield from (m for m, ok in zip(moves, safe, strict=True) if ok)
 
-    def hold_short(self, motion: Motion, t0: float, t_hit: float,
-                   restore: Obstacles) -> Motion | None:
+    def hold_short(self, motion: Motion, t0: float, t_hit: float) -> Motion | None:
         """A brake along ``motion`` (:func:`~chekhov.execute.motion.brake_along`) that starts
         as late before the conflict at ``t_hit`` (s) as it can and leaves the motion safe in
         time from t0 (s) (:meth:`safe_in_time`, the motion up to the brake included): starts
         tried from about one stopping time before t_hit back to t0, :data:`HOLD_STEP_S`
         apart, at most :data:`HOLD_TRIES`; None when none is safe."""
         t_b = t_hit - HOLD_STEP_S - stop_time(motion.sample(t_hit), self.limits)
-        packs = self.windows(t0, restore)
+        packs = self.windows(t0)
         for _ in range(HOLD_TRIES):
             t_b = max(t_b, t0)
             brake = brake_along(motion, t_b, self.limits)
-            if self.safe_in_time([motion.then(brake)], t0, restore, windows=packs).all():
+            if self.safe_in_time([motion.then(brake)], t0, windows=packs).all():
                 return brake
             if t_b <= t0:
                 break

@@ -207,7 +207,7 @@ class Executor:
         backs = self._joins_back(start, t)
         w = time.perf_counter()
         tick_end = self._wall0 + IMMEDIATE_SHARE * self.config.control_dt_s / self.wall_scale
-        immediate = self.swerver.immediate(backs, start, t, self._seen, tick_end)
+        immediate = self.swerver.immediate(backs, start, t, tick_end)
         swerve = immediate.pieces[0].kind == "swerve"
         self.counters.swerves += swerve
         self.immediate_motion = self.motion.then(immediate)
@@ -240,8 +240,8 @@ class Executor:
             return move
         stop = stop_from(start, t, self.limits, self.bounds)
         if not past(self._deadline) and \
-                not ev.safe_in_time([stop], t, self._seen, 0.0).all():
-            for move in ev.escapes(start, t, self._seen, self._deadline):
+                not ev.safe_in_time([stop], t, 0.0).all():
+            for move in ev.escapes(start, t, self._deadline):
                 if past(self._deadline):
                     break
                 if self.checks.free(move, t, self._seen):
@@ -270,7 +270,7 @@ class Executor:
                     self._safe([b], t).all():
                 return b
         return next((b for b in backs if self.tracks.tracks and
-                     self.evader.safe_in_time([b], t, self._seen, 0.0).all()), None)
+                     self.evader.safe_in_time([b], t, 0.0).all()), None)
 
     def _monitor(self, t: float) -> None:
         """Check the rest of the motion against the predicted obstacles (a sensor frame, or
@@ -308,7 +308,7 @@ class Executor:
                 self.motion.kind_at(t) in ("rest", "brake", *MOVING_ASIDE):
             return
         t1 = self._t_react(t)
-        held = self.evader.hold_short(self.motion, t1, t_hit, self._seen)
+        held = self.evader.hold_short(self.motion, t1, t_hit)
         if held is None:
             return
         pending = self._pending
@@ -358,10 +358,10 @@ class Executor:
         is; else None (the dodge goes on)."""
         assert self.motion is not None
         t_r, ev = self._t_react(t), self.evader
-        if ev.safe_in_time([self.motion], t, self._seen, 0.0).all():
+        if ev.safe_in_time([self.motion], t, 0.0).all():
             return None
         stop = stop_from(self.motion.sample(t_r), t_r, self.limits, self.bounds)
-        return stop if ev.safe_in_time([stop], t_r, self._seen, 0.0).all() else None
+        return stop if ev.safe_in_time([stop], t_r, 0.0).all() else None
 
     # --- plans ------------------------------------------------------------------------
     def _t_react(self, t: float) -> float:
@@ -447,7 +447,7 @@ class Executor:
                                                     new.pieces[0].t_end + 0.1):
                 return new
             if new is not None and not self.world.fast.valid(start.q[None])[0] and \
-                    self.evader.safe_in_time([new], t_join, self._seen, 0.0).all():
+                    self.evader.safe_in_time([new], t_join, 0.0).all():
                 return new
         return None
 
@@ -489,7 +489,7 @@ class Executor:
         if piece is None:
             return move
         again = Motion((piece,))
-        ok = self.evader.safe_in_time([self.motion.then(again)], t, self._seen, 0.0)
+        ok = self.evader.safe_in_time([self.motion.then(again)], t, 0.0)
         return again if ok.all() else move
 
     def _out_of_way(self, now: State, t0: float, *, search: bool = True) -> Motion | None:
@@ -499,16 +499,16 @@ class Executor:
         else, with ``search``, the dodge search's move (resumed when this step resumes one);
         None when there is none (the search may have been cut short: ``evader.cut_short``)."""
         ev = self.evader
-        if ev.in_scene(now.q, self._seen):
+        if ev.in_scene(now.q):
             ev.forget_cut()
-            return ev.unstick(now, t0, self._seen)
+            return ev.unstick(now, t0)
         if not search:
             return None
-        return ev.dodge(now, t0, self._seen, self._deadline, self._resuming)
+        return ev.dodge(now, t0, self._deadline, self._resuming)
 
     def _safe(self, motions: list[Motion], t0: float) -> NDArray[np.bool_]:
         """:meth:`Evader.safe_in_time <chekhov.execute.evade.Evader.safe_in_time>`."""
-        return self.evader.safe_in_time(motions, t0, self._seen)
+        return self.evader.safe_in_time(motions, t0)
 
     # --- bookkeeping ------------------------------------------------------------------
     def _install(self, motion: Motion) -> None:

@@ -12,10 +12,12 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
+from chekhov.collision.primitives import Primitives, pack_primitives, shape_primitive
 from chekhov.scene.model import Shape
 
 Array = NDArray[np.float64]
@@ -132,29 +134,67 @@ class ObstacleTracks:
         return T
 
 
-def predicted_obstacles(tracks: ObstacleTracks, t0: float, horizon_s: float, margin_m: float,
-                        max_copies: int = 24, *, speed_bound_m_s: float = 0.0
-                        ) -> dict[str, tuple[Shape, Array]]:
+class Sweep(NamedTuple):
+    """One tracked obstacle's predicted sweep: copies of ``shape`` (inflated) at ``T``
+    (4, 4) translated by each row of ``offsets`` (n, 3) m."""
+
+    shape: Shape
+    T: Array
+    offsets: Array
+
+
+def predicted_sweeps(tracks: ObstacleTracks, t0: float, horizon_s: float, margin_m: float,
+                     max_copies: int = 24, *, speed_bound_m_s: float = 0.0
+                     ) -> dict[str, Sweep]:
     """Each tracked obstacle, inflated by ``margin_m`` (m), at its predicted poses from t0 to
     t0 + horizon_s (s): copies at most one inner radius apart along the predicted line (at
     most ``max_copies``; the margin grows when the line is longer than they cover). An
     obstacle seen once (its velocity not known yet) may be moving at up to
     ``speed_bound_m_s`` (m/s) in any direction: with a bound, it is one copy where it was
     seen, inflated by the margin plus how far that speed takes it by t0 + horizon_s."""
-    out: dict[str, tuple[Shape, Array]] = {}
+    out: dict[str, Sweep] = {}
     for name, tr in tracks.tracks.items():
         if not tr.velocity_known and speed_bound_m_s > 0:
             reach = speed_bound_m_s * max(t0 + horizon_s - tr.t_last, 0.0)
-            out[f"{name}#0"] = (inflate(tr.shape, margin_m + reach), tr.T_last.copy())
+            out[name] = Sweep(inflate(tr.shape, margin_m + reach), tr.T_last.copy(),
+                              np.zeros((1, 3)))
             continue
-        T0 = tracks.pose(name, t0)
         travel = float(np.linalg.norm(tr.velocity)) * horizon_s
         r = inner_radius(tr.shape) + margin_m
         n = min(max_copies, max(1, math.ceil(travel / max(r, 1e-3)) + 1))
         gap = travel / max(n - 1, 1)
-        shape = inflate(tr.shape, margin_m + max(gap - r, 0.0) / 2)
-        for i in range(n):
-            T = T0.copy()
-            T[:3, 3] += tr.velocity * (horizon_s * i / max(n - 1, 1))
-            out[f"{name}#{i}"] = (shape, T)
+        steps = horizon_s * np.arange(n) / max(n - 1, 1)
+        out[name] = Sweep(inflate(tr.shape, margin_m + max(gap - r, 0.0) / 2),
+                          tracks.pose(name, t0), steps[:, None] * tr.velocity)
     return out
+
+
+def predicted_obstacles(tracks: ObstacleTracks, t0: float, horizon_s: float, margin_m: float,
+                        max_copies: int = 24, *, speed_bound_m_s: float = 0.0
+                        ) -> dict[str, tuple[Shape, Array]]:
+    """:func:`predicted_sweeps` as obstacles a checker takes: copy i of obstacle ``name``
+    is ``f"{name}#{i}"``."""
+    out: dict[str, tuple[Shape, Array]] = {}
+    for name, sweep in predicted_sweeps(tracks, t0, horizon_s, margin_m, max_copies,
+                                        speed_bound_m_s=speed_bound_m_s).items():
+        for i, d in enumerate(sweep.offsets):
+            T = sweep.T.copy()
+            T[:3, 3] += d
+            out[f"{name}#{i}"] = (sweep.shape, T)
+    return out
+
+
+def predicted_primitives(tracks: ObstacleTracks, t0: float, horizon_s: float,
+                         margin_m: float, *, speed_bound_m_s: float = 0.0) -> Primitives:
+    """:func:`predicted_sweeps` packed as the fast checker's kernels read obstacles (the
+    copies of :func:`predicted_obstacles`, in its order), with no obstacle objects made per
+    copy: the executive packs several windows' sweeps every sensor frame."""
+    sweeps = list(predicted_sweeps(tracks, t0, horizon_s, margin_m,
+                                   speed_bound_m_s=speed_bound_m_s).values())
+    one = pack_primitives([shape_primitive(w.shape, w.T) for w in sweeps])
+    if not sweeps:
+        return one
+    counts = [len(w.offsets) for w in sweeps]
+    return Primitives(np.repeat(one.kind, counts), np.repeat(one.R, counts, axis=0),
+                      np.repeat(one.p, counts, axis=0) + np.vstack([w.offsets for w in sweeps]),
+                      np.repeat(one.size, counts, axis=0), np.repeat(one.bound, counts))

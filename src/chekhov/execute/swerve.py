@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 
 from chekhov.collision.distance_terms import TrajectoryDistances
 from chekhov.collision.packed import PackedWorld
-from chekhov.execute.evade import Evader
+from chekhov.execute.evade import Evader, Samples
 from chekhov.execute.motion import (
     Motion,
     State,
@@ -27,7 +27,6 @@ from chekhov.execute.motion import (
     accelerating_states,
     stop_from,
 )
-from chekhov.execute.obstacles import Obstacles
 
 Array = NDArray[np.float64]
 
@@ -85,13 +84,13 @@ class Swerver:
         self._distances = TrajectoryDistances(evader.world.fast)
         self._unit_s: dict[str, float] = {}   # s: the swerve search's expected unit times
 
-    def immediate(self, backs: list[Motion], now: State, t0: float, restore: Obstacles,
+    def immediate(self, backs: list[Motion], now: State, t0: float,
                   deadline: float | None) -> Motion:
         """What a control loop commands a kicked arm (``now`` at clock time t0, s) until the
         executive's exact checks are done: the first of the joins back ``backs`` and the stop
         whose positions (every check step, to :data:`IMMEDIATE_LOOK_S` past the join) stay
-        within the joint limits and that the fast checker calls free of the scene and
-        ``restore``, the predicted obstacles it holds (microseconds, not the exact checks'
+        within the joint limits and that the fast checker calls free of the scene and of the
+        predicted obstacles it holds (microseconds, not the exact checks'
         milliseconds); else a swerve (:meth:`swerve`, until ``deadline``); else, of those
         within the limits, the one whose first fast alarm comes latest. A join back straight
         into a cabinet had been commanded for the two ticks a kicked step overran."""
@@ -111,10 +110,10 @@ class Swerver:
                 q_hit = Q[i]
             if float(ts[i]) > best_t:
                 best, best_t = m, float(ts[i])
-        swerve = self.swerve(now, t0, restore, deadline, q_hit=q_hit)
+        swerve = self.swerve(now, t0, deadline, q_hit=q_hit)
         return swerve if swerve is not None else best
 
-    def swerve(self, now: State, t0: float, restore: Obstacles,
+    def swerve(self, now: State, t0: float,
                deadline: float | None = None, *, q_hit: Array | None = None
                ) -> Motion | None:
         """An arm ``now`` (at clock time t0, s) whose every smooth move (join, stop, escape)
@@ -134,7 +133,7 @@ class Swerver:
         at ``q_hit`` (rad; :meth:`_away`). A kicked kitchen arm moving at 1.4 rad/s 10 ms from
         a cabinet had none but such a swerve (1 of 256 random ones free at 1 ms steps)."""
         ev = self.evader
-        packs = ev.windows(t0, restore, 0.0)
+        packs = ev.windows(t0, 0.0)
         budget = _Budget(deadline, self._unit_s)
         buys_time: Motion | None = None
         for c0 in range(0, SWERVE_TRIES, SWERVE_CHUNK):
@@ -150,7 +149,7 @@ class Swerver:
                 if not budget.room("judge"):
                     return buys_time
                 with budget.unit("judge"):
-                    moves = self._judged(now, t0, A[k:k + SWERVE_JUDGED], packs, restore)
+                    moves = self._judged(now, t0, A[k:k + SWERVE_JUDGED], packs)
                 safe = [m for m, ok in moves if ok]
                 if safe:
                     return safe[0]
@@ -158,8 +157,8 @@ class Swerver:
                                               None)
         return buys_time
 
-    def _judged(self, now: State, t0: float, A: Array, packs: list[PackedWorld],
-                restore: Obstacles) -> list[tuple[Motion, bool]]:
+    def _judged(self, now: State, t0: float, A: Array, packs: list[PackedWorld]
+                ) -> list[tuple[Motion, bool]]:
         """The swerves from ``now`` (clock time t0, s) at accelerations A (N, K) rad/s² whose
         first samples passed :meth:`_swerves_clear`, those whose rest passes too, each with
         its stop, and whether it is safe in time with no margin."""
@@ -171,7 +170,7 @@ class Swerver:
             moves.append(Motion((piece, *stop.pieces)))
         if not moves:
             return []
-        safe = ev.safe_in_time(moves, t0, restore, 0.0, windows=packs)
+        safe = ev.safe_in_time(moves, t0, 0.0, windows=packs)
         return list(zip(moves, (bool(x) for x in safe), strict=True))
 
     def _braking_at_limits(self, now: State, A: Array) -> Array:
@@ -225,8 +224,11 @@ class Swerver:
         ok = np.ones(len(A), dtype=bool)
         if first:
             ok &= robot.within_limits(Q.reshape(-1, len(now.q))).reshape(len(A), -1).all(axis=1)
-        is_first = np.arange(len(us)) < SWERVE_FIRST
+        N = len(A)
+        samples = Samples(np.tile(t0 + us, N), Q.reshape(N * len(us), -1),
+                          np.repeat(np.arange(N), len(us)), np.tile(np.arange(len(us)), N))
+        is_first = samples.step < SWERVE_FIRST
         for pick, on in ((is_first, first), (~is_first, rest)):
             if on:
-                ev.drop_unsafe(ok, [(t0 + us, Q[i], pick) for i in range(len(A))], packs, t0)
+                ev.drop_unsafe(ok, samples, pick, packs, t0)
         return ok
