@@ -245,7 +245,8 @@ class FastChecker:
         obstacles (an earlier :attr:`packed`), without changing this checker — for checks
         that alternate between a few obstacle sets (the executive's time windows)."""
         Q = self._as_batch(Q)
-        if _layout(packed) != _layout(self.packed):   # another numba type: plain dispatch
+        if packed is not self.packed and _layout(packed) != self._layout:
+            # another numba type: plain dispatch
             return validity.valid_batch(Q, packed)
         return self._run_in(packed, validity.valid_batch, (Q,))
 
