@@ -467,6 +467,51 @@ def test_an_arm_resting_in_the_scene_gets_out_and_reaches_its_goal(world, planne
     assert evaluate_episode(world, rec, limits, 0.1).limit_violations == 0
 
 
+def test_the_way_out_is_the_soonest_out_nearest_target_judged_one_by_one(world, limits):
+    """``Evader.unstick`` (moves made and judged in chunks, stopping at one out at once)
+    against its statement, target by target: of the moves from the stuck arm (moving) to the
+    dodge targets that stay within the limits, the one whose configurations are free of
+    their window's sweep (no margin) from the earliest check step on, within UNSTICK_S — the
+    nearest target on a tie; with a ball flying at the arm. And with its deadline past, a
+    way out of the first chunk that is one by the same statement."""
+    from chekhov.execute.evade import UNSTICK_S, window_edges
+    from chekhov.execute.motion import Motion
+    q0, _, tracks, t0 = _ball_at_the_elbow(world, 0.06)
+    stuck = _in_the_scene(world, q0)
+    c = CONFIG.executor
+    bounds = Bounds(world.robot.lower, world.robot.upper)
+    z = np.zeros_like(q0)
+    now = State(stuck, 0.1 * limits.velocity * np.sign(np.arange(len(q0)) % 2 - 0.5), z)
+
+    def out_of(move, packs):       # the first check step from which all is free, or None
+        edges = window_edges(c.horizon_s)
+        ts, Q = move.positions(t0, max(t0 + edges[-1], move.t_end), c.check_dt_s)
+        if not world.robot.within_limits(Q).all():
+            return None
+        free = [world.fast.valid_in(packs[min(int(np.searchsorted(
+            edges, t - t0 + 1e-9, side="right")) - 1, len(packs) - 1)], q[None])[0]
+            for t, q in zip(ts, Q, strict=True)]
+        out = max([i + 1 for i, f in enumerate(free) if not f], default=0)
+        return out if out < len(ts) and ts[out] - t0 <= UNSTICK_S else None
+
+    reference = _seeded_evader(world, tracks, limits)
+    packs = reference.windows(t0, 0.0)
+    best = None
+    for q in reference.targets(now, t0):
+        if not world.fast.valid_in(packs[-1], q[None])[0]:
+            continue
+        piece = ruckig_piece(now, State(q, z, z), t0, limits, "dodge", bounds)
+        out = None if piece is None else out_of(Motion((piece,)), packs)
+        if out is not None and (best is None or out < best[0]):
+            best = (out, q)
+    move = _seeded_evader(world, tracks, limits).unstick(now, t0)
+    assert best is not None and move is not None
+    assert np.allclose(move.end.q, best[1])
+    cut = _seeded_evader(world, tracks, limits).unstick(now, t0, deadline=0.0)
+    if cut is not None:
+        assert out_of(cut, packs) is not None
+
+
 def test_a_kicked_arm_in_the_scene_gets_out_though_every_search_is_cut(world, planner):
     """A kick that leaves the arm in the static scene while an obstacle is tracked, and a
     search budget that every search overruns: no dodge can be safe from there (each starts in

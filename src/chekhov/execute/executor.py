@@ -501,7 +501,7 @@ class Executor:
         ev = self.evader
         if ev.in_scene(now.q):
             ev.forget_cut()
-            return ev.unstick(now, t0)
+            return ev.unstick(now, t0, self._deadline)
         if not search:
             return None
         return ev.dodge(now, t0, self._deadline, self._resuming)
