@@ -855,6 +855,7 @@ def test_safe_in_time_is_each_samples_check_in_the_windows_holding_it(world, lim
         expected.append(ok)
     assert np.array_equal(safe, expected)
     assert 5 <= int(safe.sum()) <= len(moves) - 5
+    assert evader.safe_in_time([], t0, 0.0).shape == (0,)     # no moves (none made): none safe
 
 
 def test_the_dodge_is_the_nearest_target_whose_move_is_safe_sample_by_sample(world, limits):

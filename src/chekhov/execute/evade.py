@@ -121,13 +121,12 @@ class Samples(NamedTuple):
 
     @classmethod
     def of(cls, samples: list[tuple[Array, Array]]) -> Samples:
-        """From each motion's (times (n,), positions (n, K)), in order."""
+        """From each motion's (times (n,), positions (n, K)), in order (one motion at
+        least)."""
         n = np.array([len(ts) for ts, _ in samples], dtype=np.int64)
-        K = samples[0][1].shape[1] if samples else 0
-        return cls(np.concatenate([ts for ts, _ in samples]) if samples else np.zeros(0),
-                   np.vstack([Q for _, Q in samples]) if samples else np.zeros((0, K)),
-                   np.repeat(np.arange(len(n)), n), np.arange(n.sum()) - np.repeat(
-                       np.cumsum(n) - n, n))
+        return cls(np.concatenate([ts for ts, _ in samples]),
+                   np.vstack([Q for _, Q in samples]), np.repeat(np.arange(len(n)), n),
+                   np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n))
 
 
 class Evader:
@@ -174,6 +173,8 @@ class Evader:
         (:meth:`windows`, made here unless given), and the motions' configurations of that
         window are checked against it; the last window's sweep also holds for the rest of
         each motion."""
+        if not motions:
+            return np.zeros(0, dtype=bool)
         packs = windows if windows is not None else self.windows(t0, margin_m)
         dt, robot = self.settings.check_dt_s, self.world.robot
         # each motion sampled once, every dt from t0 to past the horizon; every COARSE-th
@@ -312,6 +313,8 @@ class Evader:
         from which every configuration is free of its window's sweep (``packs``, window
         ``edges`` s from t0; a step on an edge in the later window), -1 when that is not
         within :data:`UNSTICK_S` or a step leaves the joint limits."""
+        if not moves:
+            return []
         dt, fast = self.settings.check_dt_s, self.world.fast
         flat = Samples.of([m.positions(t0, max(t0 + edges[-1], m.t_end), dt) for m in moves])
         win = np.minimum(np.searchsorted(edges, flat.t - t0 + 1e-9, side="right") - 1,

@@ -217,6 +217,8 @@ class Swerver:
         Against the whole horizon's sweep at once (what the fast checker holds), every
         swerve of an arm beside the forearm was dropped, where 256 of 256 random ones were
         safe in time."""
+        if not len(A):
+            return np.zeros(0, dtype=bool)
         ev = self.evader
         dt, robot = ev.settings.check_dt_s, ev.world.robot
         us = np.arange(dt, SWERVE_S + 1e-9, dt)
@@ -225,7 +227,7 @@ class Swerver:
         if first:
             ok &= robot.within_limits(Q.reshape(-1, len(now.q))).reshape(len(A), -1).all(axis=1)
         N = len(A)
-        samples = Samples(np.tile(t0 + us, N), Q.reshape(N * len(us), -1),
+        samples = Samples(np.tile(t0 + us, N), Q.reshape(N * len(us), len(now.q)),
                           np.repeat(np.arange(N), len(us)), np.tile(np.arange(len(us)), N))
         is_first = samples.step < SWERVE_FIRST
         for pick, on in ((is_first, first), (~is_first, rest)):
