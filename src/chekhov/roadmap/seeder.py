@@ -201,10 +201,10 @@ class RoadmapSeeder:
         k = min(GOAL_NODE_CANDIDATES, self.roadmap.n_nodes)
         idx = nearest_poses(self._ee_position, self._ee_rotation, T, k, k)
         dp = np.linalg.norm(self.roadmap.ee_position[idx] - T[:3, 3], axis=1)
+        idx = idx[dp <= min(GOAL_NODE_POSITION_M, goal.position_tolerance)]
+        # the angles only of those near enough (none, for most poses not a pre-grasp)
         da = np.array([rotation_angle(self._ee_rotation[i], T[:3, :3]) for i in idx])
-        ok = (dp <= min(GOAL_NODE_POSITION_M, goal.position_tolerance)) & \
-            (da <= min(GOAL_NODE_ROTATION_RAD, goal.orientation_tolerance))
-        idx = idx[ok]
+        idx = idx[da <= min(GOAL_NODE_ROTATION_RAD, goal.orientation_tolerance)]
         self.validity.refresh()
         idx = idx[self.validity.nodes_valid(idx)]
         if near is not None and len(idx) > 1:
