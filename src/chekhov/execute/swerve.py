@@ -226,9 +226,7 @@ class Swerver:
         ok = np.ones(len(A), dtype=bool)
         if first:
             ok &= robot.within_limits(Q.reshape(-1, len(now.q))).reshape(len(A), -1).all(axis=1)
-        N = len(A)
-        samples = Samples(np.tile(t0 + us, N), Q.reshape(N * len(us), len(now.q)),
-                          np.repeat(np.arange(N), len(us)), np.tile(np.arange(len(us)), N))
+        samples = Samples.of([(t0 + us, Qi) for Qi in Q])
         is_first = samples.step < SWERVE_FIRST
         for pick, on in ((is_first, first), (~is_first, rest)):
             if on:
