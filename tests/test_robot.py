@@ -138,6 +138,54 @@ def test_mesh_covers_are_tighter_than_the_box_centres():
     assert after <= 0.97 * before, (after, before)
 
 
+def test_split_triangles_keep_the_surface_in_short_triangles():
+    """Every piece lies in its triangle (barycentric coordinates in [0, 1]), the pieces' area
+    is the triangles', and no edge is longer than asked; 0 leaves the triangles alone."""
+    from chekhov.robot.spheres import split_triangles
+
+    rng = np.random.default_rng(3)
+    tri = rng.uniform(-0.2, 0.2, (40, 3, 3))
+    tri[0] = [[0, 0, 0], [0.5, 0, 0], [0, 0.001, 0]]        # a long sliver
+    pieces = split_triangles(tri, 0.03)
+    assert len(pieces) > 10 * len(tri)
+    assert np.linalg.norm(pieces - np.roll(pieces, -1, axis=1), axis=2).max() <= 0.03
+
+    def area(T):
+        return 0.5 * np.linalg.norm(np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]), axis=1)
+
+    assert abs(area(pieces).sum() - area(tri).sum()) <= 1e-9 * area(tri).sum()
+    # each piece's corners, in barycentric coordinates of the one triangle that holds them
+    for P in pieces[rng.choice(len(pieces), 300, replace=False)]:
+        held = False
+        for T in tri:
+            M = np.stack([T[1] - T[0], T[2] - T[0]], axis=1)
+            uv, *_ = np.linalg.lstsq(M, (P - T[0]).T, rcond=None)
+            inside = (np.abs(M @ uv - (P - T[0]).T).max() < 1e-12 and (uv >= -1e-9).all()
+                      and (uv.sum(axis=0) <= 1 + 1e-9).all())
+            held = held or inside
+        assert held
+    assert np.array_equal(split_triangles(tri, 0.0), tri)
+
+
+def test_split_mesh_covers_are_tighter():
+    """The Panda's mesh spheres from split triangles: radii summing at least 20% below those
+    of the whole triangles' clusters (measured 25.5%: 5.95 → 4.43 m over its 8 meshes; a
+    cluster holding a long triangle needs a ball as long as it). Both cover the surface (the
+    covering test below)."""
+    from chekhov.robot.spheres import cover_geometry
+
+    robot = Robot.load("panda")
+    s = robot.description.spheres
+    whole = split = 0.0
+    for gi in robot.moving_geometries:
+        geo = robot.collision_model.geometryObjects[gi].geometry
+        if hasattr(geo, "num_tris"):
+            whole += float(cover_geometry(geo, s.max_excess, s.mesh_spheres,
+                                          mesh_split=0.0)[1].sum())
+            split += float(cover_geometry(geo, s.max_excess, s.mesh_spheres)[1].sum())
+    assert split <= 0.8 * whole, (split, whole)
+
+
 def _surface_points(geo, rng, n=600):
     """Points on a coal shape's surface (its own frame): cylinder rims, caps and side; box
     corners, edges and faces; sphere and capsule surfaces; for a mesh every vertex and 4

@@ -23,11 +23,16 @@ class SphereSettings:
         padding: metres added to every sphere radius, so rounding never lets a sphere
             under-cover its geometry.
         mesh_spheres: spheres used to cover one collision mesh (k-means on its triangles).
+        mesh_split: before the clustering, a mesh's triangles are cut in halves until every
+            edge is at most this fraction of the mesh's bounding-box diagonal (0: not cut), so
+            that a cluster is a patch of surface rather than a few long triangles spanning the
+            link (``spheres.split_triangles``).
     """
 
     max_excess: float = 0.15
     padding: float = 0.002
     mesh_spheres: int = 12
+    mesh_split: float = 1.0 / 16.0
 
 
 @dataclass(frozen=True)
