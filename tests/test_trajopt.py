@@ -464,10 +464,11 @@ def test_a_trajectory_that_touches_between_waypoints_is_refined(world_of):
     """Swept spheres move along chords while the links move on arcs, so straight-line TrajOpt
     on Panda shelf tasks ended "collision" (an obstacle touched between two waypoints that the
     terms called clear) in 9 of 60 cases. Those runs are now continued with the colliding
-    segments split: many then succeed (16-17 of 26 such runs on 150 cases, seed 7; here 7 of
-    7 on 100 cases — 4 of 60 ran into "collision" once the spheres came from split triangles —
-    as small changes to the terms move TrajOpt's iterates), each success exactly free at
-    4 times the validation's substeps and ending at the goal pose (pinocchio's FK)."""
+    segments split: many then succeed (16-17 of 26 such runs on 150 cases, seed 7; here, with
+    the spheres from split triangles — closer to the links, so fewer runs touch — 3 of the 4
+    runs of 100 cases that do, as small changes to the terms move TrajOpt's iterates), each
+    success exactly free at 4 times the validation's substeps and ending at the goal pose
+    (pinocchio's FK)."""
     world = world_of("panda_table_shelf")
     cases = generate_cases(world, 100, seed=3, family="tasks")
     once = TrajOptConfig(refine_rounds=0)
@@ -478,7 +479,7 @@ def test_a_trajectory_that_touches_between_waypoints_is_refined(world_of):
         r = solve_trajopt(build_trajopt(world, cases.q_start[i], cases.goal(i), seed, once))
         if r.status == "collision":
             touched.append((i, seed))
-    assert len(touched) >= 5, len(touched)
+    assert len(touched) >= 3, len(touched)
     refined = 0
     for i, seed in touched:
         goal = cases.goal(i)

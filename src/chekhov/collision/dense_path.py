@@ -30,8 +30,9 @@ Self-collision pairs get certificates the same way, but a pair's gap changes onl
 joints between its two groups (below their lowest common joint: the joints above move both
 rigidly), so only those joints count: from the bounding spheres' gap, else the pair's table
 (``self_table.py``: one or two joints between them), else the smallest gap between their
-spheres, else — spheres overlapping, as the Panda's link 5 and fingers do in a
-fifth of its configurations — the gap GJK certifies between the covered geometries beyond
+spheres, else — spheres overlapping, as the Panda's link 5 and fingers did in a
+fifth of its configurations with spheres from whole mesh triangles (4% since they are split)
+— the gap GJK certifies between the covered geometries beyond
 their confirmation margins (:func:`gjk.convex_gap`).
 
 Near obstacles — a hand at a pre-grasp, an elbow beside a shelf — the bounding sphere touches

@@ -451,8 +451,9 @@ class TrajectoryDistances:
         A self pair of groups that one or two joints move relative to each other has a table
         of certified lower bounds on its geometries' gap (``self_table.py``); where that bound
         is at least ``tabled_clear_m`` (m) the pair is no term — its spheres may overlap
-        (the Panda's link 5 and hand by up to 10 cm on a fifth of random configurations, a
-        UR5's wrist 2 and tool link by 14 mm on every one) while the links are apart."""
+        (the Panda's link 5 and hand by up to 10 cm on a fifth of random configurations with
+        spheres from whole mesh triangles, a UR5's wrist 2 and tool link by 14 mm on every
+        one) while the links are apart."""
         Q = np.ascontiguousarray(Q, dtype=float)
         T, K = Q.shape
         dist, grad = np.empty((T, C)), np.empty((T, C, K))

@@ -32,7 +32,7 @@ class SphereSettings:
     max_excess: float = 0.15
     padding: float = 0.002
     mesh_spheres: int = 12
-    mesh_split: float = 1.0 / 16.0
+    mesh_split: float = 1.0 / 32.0
 
 
 @dataclass(frozen=True)

@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 from scipy.cluster.vq import kmeans2
 
 from chekhov.errors import RobotError
+from chekhov.robot.description import SphereSettings
 from chekhov.robot.robot import Robot
 
 Array = NDArray[np.float64]
@@ -45,7 +46,7 @@ class SphereModel:
 
 SPLIT_ROUNDS = 64
 """Rounds of :func:`split_triangles` at most: each halves the longest edge of every triangle
-still too long, and a mesh's edges are at most 16 times the limit (its diagonal), so a few
+still too long, and a mesh's edges are at most 32 times the limit (its diagonal), so a few
 rounds of these suffice (64 bound a degenerate input's work)."""
 
 
@@ -157,7 +158,7 @@ def split_triangles(triangles: Array, max_edge_m: float) -> Array:
 
 
 def cover_geometry(geometry: coal.CollisionGeometry, max_excess: float, mesh_spheres: int,
-                   *, mesh_split: float = 1.0 / 16.0) -> tuple[Array, Array]:
+                   *, mesh_split: float = SphereSettings.mesh_split) -> tuple[Array, Array]:
     """Spheres covering one coal shape, in the shape's own frame. A mesh's triangles are
     split (:func:`split_triangles`) to edges at most ``mesh_split`` times its bounding box's
     diagonal before they are clustered (``SphereSettings.mesh_split``)."""
