@@ -167,6 +167,39 @@ def test_split_triangles_keep_the_surface_in_short_triangles():
     assert np.array_equal(split_triangles(tri, 0.0), tri)
 
 
+def test_split_triangles_stop_at_their_bound(monkeypatch):
+    """A limit far below the triangles' size stops at ``SPLIT_MAX_TRIANGLES``: the triangles
+    still too long are kept whole, the surface (area) the same."""
+    import chekhov.robot.spheres as spheres
+
+    monkeypatch.setattr(spheres, "SPLIT_MAX_TRIANGLES", 1000)
+    tri = np.array([[[0, 0, 0], [1.0, 0, 0], [0, 1.0, 0]]])
+    pieces = spheres.split_triangles(tri, 1e-9)
+    assert 500 <= len(pieces) <= 1000
+    area = 0.5 * np.linalg.norm(np.cross(pieces[:, 1] - pieces[:, 0],
+                                         pieces[:, 2] - pieces[:, 0]), axis=1).sum()
+    assert abs(area - 0.5) < 1e-12
+
+
+@pytest.mark.parametrize("spheres, says", [
+    ({"mesh_split": "abc"}, "'mesh_split' must be a finite number >= 0"),
+    ({"mesh_split": -0.1}, "'mesh_split' must be a finite number >= 0"),
+    ({"max_excess": 0}, "'max_excess' must be a finite number > 0"),
+    ({"mesh_spheres": 2.5}, "'mesh_spheres' must be an integer >= 1"),
+    ({"bogus": 1}, r"unknown key\(s\) \['bogus'\]"),
+    ([1], "expected a mapping"),
+])
+def test_bad_sphere_settings_are_located_errors(spheres, says):
+    from chekhov.robot.description import RobotDescription
+
+    d = {"name": "x", "urdf": "u.urdf", "group_joints": ["a"], "ee_frame": "e",
+         "spheres": spheres}
+    with pytest.raises(RobotError, match="robot.yaml: field 'spheres': " + says):
+        RobotDescription.from_dict(d, "robot.yaml")
+    d["spheres"] = {"mesh_split": 0.05, "mesh_spheres": 8}
+    assert RobotDescription.from_dict(d, "robot.yaml").spheres.mesh_split == 0.05
+
+
 def test_split_mesh_covers_are_tighter():
     """The Panda's mesh spheres from split triangles: radii summing at least 20% below those
     of the whole triangles' clusters (measured 27%: 5.95 → 4.34 m over its 8 meshes; a

@@ -35,6 +35,26 @@ class SphereSettings:
     mesh_split: float = 1.0 / 32.0
 
 
+def _sphere_settings(d: object, where: str) -> SphereSettings:
+    """The :class:`SphereSettings` of a description file's ``spheres`` mapping; a located
+    :class:`RobotError` (``where``: the file and field) for an unknown key or a bad value."""
+    if not isinstance(d, dict):
+        raise RobotError(f"{where}: expected a mapping of sphere settings, got {d!r}")
+    known = sorted(SphereSettings.__dataclass_fields__)
+    unknown = sorted(set(map(str, d)) - set(known))
+    if unknown:
+        raise RobotError(f"{where}: unknown key(s) {unknown}; known: {known}")
+    for key, value in d.items():
+        whole, positive = key == "mesh_spheres", key == "max_excess"
+        ok = isinstance(value, int) if whole else isinstance(value, int | float)
+        if isinstance(value, bool) or not ok or not -float("inf") < value < float("inf") \
+                or value < (1 if whole else 0) or (positive and value <= 0):
+            need = "an integer >= 1" if whole else (
+                "a finite number > 0" if positive else "a finite number >= 0")
+            raise RobotError(f"{where}: '{key}' must be {need}, got {value!r}")
+    return SphereSettings(**d)
+
+
 @dataclass(frozen=True)
 class RobotDescription:
     """A robot and its planning group.
@@ -114,7 +134,7 @@ class RobotDescription:
                     raise RobotError(f"{source}: field '{key}' must be 3 numbers, got {v!r}")
                 kw[key] = tuple(float(x) for x in v)
         kw["roadmap_fixed"] = tuple(float(x) for x in d.get("roadmap_fixed", ()))
-        kw["spheres"] = SphereSettings(**d.get("spheres", {}))
+        kw["spheres"] = _sphere_settings(d.get("spheres", {}), f"{source}: field 'spheres'")
         kw.setdefault("srdf", None)
         kw["package_dirs"] = tuple(str(x) for x in d.get("package_dirs", ()))
         desc = cls(**kw)

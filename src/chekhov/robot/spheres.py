@@ -44,10 +44,11 @@ class SphereModel:
         return len(self.radii)
 
 
-SPLIT_ROUNDS = 64
-"""Rounds of :func:`split_triangles` at most: each halves the longest edge of every triangle
-still too long, and a mesh's edges are at most 32 times the limit (its diagonal), so a few
-rounds of these suffice (64 bound a degenerate input's work)."""
+SPLIT_MAX_TRIANGLES = 500_000
+""":func:`split_triangles` stops halving once it holds this many triangles, keeping the rest
+as they are (still covered: only the spheres are looser). A mesh split to 1/32 of its
+diagonal (``SphereSettings.mesh_split``) needs a few thousand; the bound keeps a tiny
+``max_edge_m`` from taking all memory."""
 
 
 def mesh_arrays(geometry: coal.CollisionGeometry) -> tuple[Array, NDArray[np.int64]]:
@@ -135,20 +136,22 @@ def cover_triangles(triangles: Array, n_spheres: int, seed: int = 0) -> tuple[Ar
 def split_triangles(triangles: Array, max_edge_m: float) -> Array:
     """The triangles (F, 3, 3), m, each cut in two at the middle of its longest edge until no
     edge is longer than ``max_edge_m`` (m; 0 or less: as they are): the same surface, in
-    triangles about ``max_edge_m`` across. Rounds of halving, vectorised; a triangle still
-    too long after :data:`SPLIT_ROUNDS` rounds is kept as it is."""
+    triangles about ``max_edge_m`` across. Rounds of halving, vectorised; once a round would
+    pass :data:`SPLIT_MAX_TRIANGLES`, the triangles still too long are kept as they are."""
     T = np.asarray(triangles, dtype=float).reshape(-1, 3, 3)
-    if max_edge_m <= 0.0:
+    if not max_edge_m > 0.0:
         return T
-    done = []
-    for _ in range(SPLIT_ROUNDS):
+    done: list[Array] = []
+    kept = 0
+    while len(T):
         edge = np.linalg.norm(T - np.roll(T, -1, axis=1), axis=2)   # edge i: corner i → i + 1
         i = np.argmax(edge, axis=1)
         rows = np.arange(len(T))
         long = edge[rows, i] > max_edge_m
         done.append(T[~long])
+        kept += len(done[-1])
         T, i, rows = T[long], i[long], rows[: int(long.sum())]
-        if len(T) == 0:
+        if kept + 2 * len(T) > SPLIT_MAX_TRIANGLES:
             break
         a, b, c = T[rows, i], T[rows, (i + 1) % 3], T[rows, (i + 2) % 3]
         m = 0.5 * (a + b)
