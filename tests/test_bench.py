@@ -38,7 +38,7 @@ def tmp(bench_dir):
     cases and one over 5 can replace different cases (RRTConnect at its 1 s limit: case 1
     takes it 0.1-0.45 s unloaded, more beside the rest of the suite), and so name different
     case sources — separate experiments, whose runs are not resumed across them."""
-    cached_solvable_cases(World.load(SCENE), 5, seed=0)
+    cached_solvable_cases(World.load(SCENE), 5, seed=BenchConfig.case_seed)
     return bench_dir
 
 

@@ -34,6 +34,20 @@ class SphereSettings:
     mesh_spheres: int = 12
     mesh_split: float = 1.0 / 32.0
 
+    def __post_init__(self) -> None:
+        """A :class:`RobotError` naming the first setting out of its range."""
+        if isinstance(self.mesh_spheres, bool) or not isinstance(self.mesh_spheres, int) \
+                or self.mesh_spheres < 1:
+            raise RobotError(f"'mesh_spheres' must be an integer >= 1, got "
+                             f"{self.mesh_spheres!r}")
+        for key, low, need in (("max_excess", None, "a finite number > 0"),
+                               ("padding", 0.0, "a finite number >= 0"),
+                               ("mesh_split", 0.0, "a finite number >= 0")):
+            v = getattr(self, key)
+            number = isinstance(v, int | float) and not isinstance(v, bool)
+            if not (number and abs(v) < float("inf") and (v > 0 if low is None else v >= low)):
+                raise RobotError(f"'{key}' must be {need}, got {v!r}")
+
 
 def _sphere_settings(d: object, where: str) -> SphereSettings:
     """The :class:`SphereSettings` of a description file's ``spheres`` mapping; a located
@@ -44,15 +58,10 @@ def _sphere_settings(d: object, where: str) -> SphereSettings:
     unknown = sorted(set(map(str, d)) - set(known))
     if unknown:
         raise RobotError(f"{where}: unknown key(s) {unknown}; known: {known}")
-    for key, value in d.items():
-        whole, positive = key == "mesh_spheres", key == "max_excess"
-        ok = isinstance(value, int) if whole else isinstance(value, int | float)
-        if isinstance(value, bool) or not ok or not -float("inf") < value < float("inf") \
-                or value < (1 if whole else 0) or (positive and value <= 0):
-            need = "an integer >= 1" if whole else (
-                "a finite number > 0" if positive else "a finite number >= 0")
-            raise RobotError(f"{where}: '{key}' must be {need}, got {value!r}")
-    return SphereSettings(**d)
+    try:
+        return SphereSettings(**d)
+    except RobotError as e:
+        raise RobotError(f"{where}: {e}") from None
 
 
 @dataclass(frozen=True)

@@ -145,14 +145,13 @@ def split_triangles(triangles: Array, max_edge_m: float) -> Array:
     kept = 0
     while len(T):
         edge = np.linalg.norm(T - np.roll(T, -1, axis=1), axis=2)   # edge i: corner i → i + 1
-        i = np.argmax(edge, axis=1)
-        rows = np.arange(len(T))
-        long = edge[rows, i] > max_edge_m
+        long = edge.max(axis=1) > max_edge_m
         done.append(T[~long])
         kept += len(done[-1])
-        T, i, rows = T[long], i[long], rows[: int(long.sum())]
+        T, i = T[long], np.argmax(edge[long], axis=1)
         if kept + 2 * len(T) > SPLIT_MAX_TRIANGLES:
             break
+        rows = np.arange(len(T))
         a, b, c = T[rows, i], T[rows, (i + 1) % 3], T[rows, (i + 2) % 3]
         m = 0.5 * (a + b)
         T = np.concatenate([np.stack([a, m, c], axis=1), np.stack([m, b, c], axis=1)])
