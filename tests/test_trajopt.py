@@ -1,6 +1,7 @@
 """TrajOpt: derivatives against finite differences, the QP step, pushing a path out of an
 obstacle, and clear errors."""
 
+import time
 from dataclasses import replace
 
 import numpy as np
@@ -18,7 +19,11 @@ from chekhov.collision.distance_terms import (
 )
 from chekhov.collision.exact import ExactChecker, densify
 from chekhov.collision.kernels import signed_distance
+from chekhov.collision.path_check import CERTIFY_MAX_SEGMENT_RAD, path_digest
+from chekhov.paths import resample_path
 from chekhov.planners.base import path_length
+from chekhov.planners.certify import check_path
+from chekhov.planners.query import PlanQuery
 from chekhov.robot.goal import Goal
 from chekhov.robot.robot import Robot
 from chekhov.trajopt.config import TrajOptConfig
@@ -493,3 +498,30 @@ def test_a_trajectory_that_touches_between_waypoints_is_refined(world_of):
         assert np.linalg.norm(T_world_ee[:3, 3] - goal.T_world_ee[:3, 3]) \
             <= goal.position_tolerance
     assert refined >= len(touched) // 3, (refined, len(touched))
+
+
+def test_the_validation_certificate_stands_for_the_certification(pole, rng):
+    """TrajOpt validates its result as every answer is certified (segments over 0.16 rad split
+    first, 100 substeps), so its certificate covers the certification's check of the same
+    path: the path is not checked twice. Checked by another mechanism: coal on every
+    configuration of that resampled path. A validation at another split names no resampling
+    (the certification then checks for itself)."""
+    q0, q1 = _free(pole, rng, 2)
+    while np.linalg.norm(q1 - q0) < 1.5:
+        q0, q1 = _free(pole, rng, 2)
+    seed = straight_line_seed(q0, q1, 4)                    # segments of 0.5 rad or more
+    cfg = TrajOptConfig(max_step_rad=0.32)
+    r = solve_trajopt(build_trajopt(pole, q0, Goal.configuration(q1), seed, cfg))
+    assert r.success and r.certificate is not None, r.status
+    P = r.trajectory
+    assert np.linalg.norm(np.diff(P, axis=0), axis=1).max() > CERTIFY_MAX_SEGMENT_RAD
+    assert r.certificate.resampled_from == path_digest(P)
+    query = PlanQuery(q0, Goal.configuration(q1), 10.0, time.perf_counter())
+    why, certificate = check_path(pole, query, P, r.certificate)
+    assert why is None and certificate is r.certificate     # covered: no second check
+    assert pole.exact.path_valid(resample_path(P, CERTIFY_MAX_SEGMENT_RAD), substeps=100)
+    other = solve_trajopt(build_trajopt(pole, q0, Goal.configuration(q1), seed,
+                                        replace(cfg, validate_max_segment_rad=0.5)))
+    assert other.certificate is not None and other.certificate.resampled_from is None
+    with pytest.raises(ValueError, match="validate_max_segment_rad"):
+        TrajOptConfig(validate_max_segment_rad=0.0)

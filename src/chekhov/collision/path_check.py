@@ -110,8 +110,9 @@ class PathCertificate:
         digest: SHA-1 of the path's float64 bytes and shape.
         substeps: interpolated configurations per segment that were checked.
         obstacles_version: the fast checker's ``obstacles_version`` at the check.
-        resampled_from: SHA-1 of the path whose resampling (``resample_path``) was checked,
-            when the caller that resampled it says so (``chekhov.planners.certify``).
+        resampled_from: SHA-1 of the path whose resampling (``resample_path`` at
+            :data:`CERTIFY_MAX_SEGMENT_RAD`) was checked, when the caller that resampled it
+            says so (``chekhov.planners.certify``, ``route_check``, TrajOpt's validation).
     """
 
     digest: bytes

@@ -17,9 +17,15 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from chekhov.collision.path_check import PathCertificate, PathDecision, exact_path_decision
+from chekhov.collision.path_check import (
+    CERTIFY_MAX_SEGMENT_RAD,
+    PathCertificate,
+    PathDecision,
+    exact_path_decision,
+    path_digest,
+)
 from chekhov.errors import DeadlineError
-from chekhov.paths import path_length
+from chekhov.paths import path_length, resample_path
 from chekhov.trajopt.problem import Evaluation, TrajOptError, TrajOptProblem, build_trajopt
 from chekhov.trajopt.qp import TrajOptQP, term_counts
 from chekhov.trajopt.result import TrajOptResult
@@ -106,12 +112,13 @@ def solve_trajopt(problem: TrajOptProblem, deadline: float = math.inf, *,
 
 def _split_colliding(problem: TrajOptProblem, Q: Array, deadline: float) -> Array | None:
     """Q (T, K) rad with a midpoint inserted in each segment whose own exact decision (at
-    ``config.substeps``) fails; None when there is none or ``deadline`` passed first."""
-    world, substeps = problem.world, problem.config.substeps
+    ``config.substeps``, split as the validation splits it) fails; None when there is none or
+    ``deadline`` passed first."""
+    cfg = problem.config
     bad = []
     for i in range(len(Q) - 1):
-        valid = exact_path_decision(world.fast, world.exact, Q[i:i + 2], substeps,
-                                    deadline).valid
+        valid = validate_path(problem.world, Q[i:i + 2], "exact", cfg.substeps, deadline,
+                              max_segment_rad=cfg.validate_max_segment_rad).valid
         if valid is None:
             return None
         if not valid:
@@ -267,7 +274,7 @@ def _validated_status(problem: TrajOptProblem, s: _SQPState, Q: Array
         return status, None, None
     # short of the sphere model's margin only: the checker decides (config docstring)
     valid, certificate = validate_path(problem.world, Q, cfg.validate, cfg.substeps,
-                                       s.deadline)
+                                       s.deadline, max_segment_rad=cfg.validate_max_segment_rad)
     if valid is None:
         status = "timeout"
     elif satisfied and not valid:
@@ -278,10 +285,14 @@ def _validated_status(problem: TrajOptProblem, s: _SQPState, Q: Array
 
 
 def validate_path(world: World, path: Array, mode: str = "exact", substeps: int = 100,
-                  deadline: float = math.inf) -> PathDecision:
+                  deadline: float = math.inf, *, max_segment_rad: float = math.inf
+                  ) -> PathDecision:
     """Whether a path (T, K) is collision-free at its waypoints and ``substeps`` interpolated
-    configurations per segment (the paper's check): (True / False / None when ``deadline``, a
-    ``time.perf_counter()`` value, passed first, certificate).
+    configurations per segment (the paper's check), each segment longer than
+    ``max_segment_rad`` (rad) split evenly first: (True / False / None when ``deadline``, a
+    ``time.perf_counter()`` value, passed first, certificate — of the split path; at the
+    certification's split, ``CERTIFY_MAX_SEGMENT_RAD``, it also names ``path`` as what was
+    resampled, so ``planners.certify`` need not check ``path`` again).
 
     "exact": the exact checker's decision, fast: the fast checker screens the same
     configurations and, since its spheres contain the robot's collision geometry (fast free ⇒
@@ -290,11 +301,18 @@ def validate_path(world: World, path: Array, mode: str = "exact", substeps: int 
     certificate). "exact_full": the exact checker on every configuration. "fast": the fast
     checker alone (conservative).
     """
+    P = np.atleast_2d(np.asarray(path, dtype=float))
+    D = resample_path(P, max_segment_rad) if len(P) > 1 and math.isfinite(max_segment_rad) \
+        else P
     if mode == "exact":
-        return exact_path_decision(world.fast, world.exact, path, substeps, deadline)
+        valid, certificate = exact_path_decision(world.fast, world.exact, D, substeps, deadline)
+        if certificate is not None and D is not P \
+                and max_segment_rad == CERTIFY_MAX_SEGMENT_RAD:   # the certification's split
+            certificate = replace(certificate, resampled_from=path_digest(P))
+        return PathDecision(valid, certificate)
     if mode == "exact_full":
-        return PathDecision(world.exact.path_valid(path, substeps=substeps), None)
-    return PathDecision(world.fast.dense_path_valid(path, substeps), None)
+        return PathDecision(world.exact.path_valid(D, substeps=substeps), None)
+    return PathDecision(world.fast.dense_path_valid(D, substeps), None)
 
 
 def _timed_out(problem: TrajOptProblem, t_start: float, timing: dict[str, float]
