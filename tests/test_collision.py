@@ -277,6 +277,8 @@ def test_budgeted_motion_checks_resumed_decide_the_same(world_of):
     Q = w.robot.sample_uniform(np.random.default_rng(12), 2000)
     Q = Q[w.fast.valid(Q)]
     A, B = Q[:120], Q[120:240]
+    # first, while none of these motions is remembered (decided ones are, MotionMemo)
+    late = w.fast.motions_valid(A, B, 0.02, deadline=0.0)
     ref = w.fast.motions_valid(A, B, 0.02)
     assert 0 < ref.mean() < 1
     out, done, resume, calls = np.zeros(len(A), dtype=bool), 0, 0, 0
@@ -287,7 +289,6 @@ def test_budgeted_motion_checks_resumed_decide_the_same(world_of):
         calls += 1
     np.testing.assert_array_equal(out, ref)
     assert calls > len(A)   # motions were cut and resumed
-    late = w.fast.motions_valid(A, B, 0.02, deadline=0.0)
     assert not (late & ~ref).any() and late.sum() < ref.sum()
     # the first free motion, from every place in the list and when none is left
     free = np.flatnonzero(ref)
@@ -604,3 +605,50 @@ def test_local_clearance_bound_holds_along_the_motion(world_of, scene):
                         then = np.einsum("sab,sb->sa", Rc[j], spheres.centre[members]) + pc[j]
                         assert np.linalg.norm(now - then, axis=1).max() < d, (g, t, s)
     assert longer > 0.5 * checked, (longer, checked)
+
+
+def test_decided_motions_are_remembered_until_the_obstacles_change(world_of):
+    """A motion decided once is answered from the checker's memo (the same answer as the
+    kernel's, in plain and first-free calls mixing remembered and new motions); a motion cut
+    by the deadline is not remembered; changing the obstacles forgets every decision."""
+    from chekhov.collision import validity
+
+    w = world_of("tabletop_pole")
+    fast = w.fast
+    Q = w.robot.sample_uniform(np.random.default_rng(31), 1500)
+    Q = Q[fast.valid(Q)]
+    A, B = Q[:160], Q[160:320]
+
+    def kernel(P0, P1):
+        return validity.motions_valid(P0, P1, 0.02, 0, 0, validity.NO_BUDGET, False,
+                                      fast.packed)[0]
+
+    want = kernel(A, B)
+    assert 10 <= want.sum() <= len(A) - 10
+    first = fast.motions_valid(A[:80], B[:80], 0.02)          # half of them decided
+    np.testing.assert_array_equal(first, want[:80])
+    hits = fast._motion_memo.hits
+    np.testing.assert_array_equal(fast.motions_valid(A[:80], B[:80], 0.02), want[:80])
+    assert fast._motion_memo.hits - hits == 80                 # remembered
+    order = np.random.default_rng(5).permutation(len(A))       # remembered and new, mixed
+    for k in range(0, 60, 3):
+        P0, P1, free = A[order[k:]], B[order[k:]], want[order[k:]]
+        expect = int(np.argmax(free)) if free.any() else None
+        assert fast.first_free_motion(P0, P1, 0.02) == expect
+    np.testing.assert_array_equal(fast.motions_valid(A, B, 0.02), want)
+    C, D = Q[320:360], Q[360:400]
+    late = fast.motions_valid(C, D, 0.02, deadline=0.0)       # cut: the rest not remembered
+    np.testing.assert_array_equal(fast.motions_valid(C, D, 0.02), kernel(C, D))
+    assert not (late & ~kernel(C, D)).any()
+    # an obstacle on a free motion's path: remembered "free" is forgotten
+    i = int(np.flatnonzero(want)[0])
+    n = int(np.ceil(np.linalg.norm(B[i] - A[i]) / 0.02))
+    q_mid = A[i] + (n // 2) / n * (B[i] - A[i])
+    T = np.eye(4)
+    T[:3, 3] = fast.sphere_centers(q_mid)[-1]
+    fast.add_obstacle("memo_probe", Shape("sphere", (0.05,)), T)
+    try:
+        assert not fast.motions_valid(A[i:i + 1], B[i:i + 1], 0.02)[0]
+    finally:
+        fast.remove_obstacle("memo_probe")
+    assert fast.motions_valid(A[i:i + 1], B[i:i + 1], 0.02)[0]

@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 from chekhov.collision import dense_path, kernels, validity
 from chekhov.collision.codes import NONE
 from chekhov.collision.distance_terms import TrajectoryDistances
+from chekhov.collision.motion_memo import MotionMemo
 from chekhov.collision.packed import (
     GridCache,
     PackedWorld,
@@ -110,6 +111,7 @@ class FastChecker:
         self._entries: dict[Any, Any] = {}
         self._layout = _layout(self.packed)
         self._clear_worlds: dict[float, tuple[int, PackedWorld]] = {}
+        self._motion_memo = MotionMemo()
         self._packers = (PrefixPacker(), PrefixPacker())
         # packed_with's: the scene's own obstacles packed (dynamic ones, all), until they change
         self._scene_packed: tuple[Primitives, Primitives] | None = None
@@ -258,6 +260,9 @@ class FastChecker:
                       deadline: float = math.inf, *, clearance_m: float = 0.0) -> BoolArray:
         """Whether each straight motion Q0[i] → Q1[i] is free at every ``resolution`` (rad)
         step of joint-space distance, visited in bisection order; end points are not checked.
+        A motion decided before in the world as it is now is not checked again
+        (:class:`~chekhov.collision.motion_memo.MotionMemo`; a motion cut by the deadline is
+        not remembered).
         With a ``deadline`` (a ``time.perf_counter()`` value, s) the compiled calls are
         budgeted (``validity.check_budget``) and the clock is looked at between them: a
         motion not decided by then counts as blocked. ``clearance_m`` > 0: free only where
@@ -296,7 +301,34 @@ class FastChecker:
 
     def _motions(self, Q0: Array, Q1: Array, resolution: float, deadline: float,
                  until_free: bool, clearance_m: float) -> BoolArray:
+        """:meth:`motions_valid` (``until_free``: :meth:`first_free_motion`'s), the motions
+        decided before in this world (:class:`MotionMemo`) not checked again."""
         Q0, Q1 = self._as_batch(Q0), self._as_batch(Q1)
+        memo = self._motion_memo
+        keys, known = memo.lookup(Q0, Q1, float(resolution), float(clearance_m),
+                                  self.obstacles_version)   # 1 free, 0 blocked, -1 not known
+        out = known == 1
+        if until_free and out.any():              # none after the first known to be free
+            first = int(np.argmax(out))
+            out[first + 1:] = False
+            ask = np.flatnonzero(known[:first] < 0)
+        else:
+            ask = np.flatnonzero(known < 0)
+        if len(ask) == 0:
+            return out
+        part, done = self._check_motions(Q0[ask], Q1[ask], resolution, deadline, until_free,
+                                         clearance_m)
+        if until_free and part.any():
+            out[:] = False
+        out[ask] = part
+        memo.store(float(resolution), float(clearance_m), [keys[i] for i in ask[:done]],
+                   part[:done])
+        return out
+
+    def _check_motions(self, Q0: Array, Q1: Array, resolution: float, deadline: float,
+                       until_free: bool, clearance_m: float) -> tuple[BoolArray, int]:
+        """(free flags, how many of the motions were decided — the rest, cut by the
+        deadline, count as blocked): the compiled checks in budgeted calls."""
         world = self.packed if clearance_m <= 0.0 else self.clearance_world(clearance_m)
         out = np.zeros(len(Q0), dtype=bool)
         done = resume = calls = 0
@@ -309,7 +341,7 @@ class FastChecker:
                 until_free))
             out |= part
             calls += 1
-        return out
+        return out, done
 
     def motion_valid(self, q0: Array, q1: Array, resolution: float = 0.02) -> bool:
         """Whether the straight motion q0 → q1 and both end points are collision-free."""
