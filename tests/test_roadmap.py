@@ -257,6 +257,31 @@ def test_seeds_route_to_distinct_goal_ik_solutions(world, seeder):
     assert several >= 2
 
 
+def test_seeds_nearer_than_a_bound_are_the_unbounded_ones_whose_end_is_that_near(world,
+                                                                                 seeder):
+    """``shorter_than_rad`` keeps the routes whose end is nearer the start than the bound (a
+    path there could beat it) and connects no other end: the bounded answer is the unbounded
+    one's routes to those ends (distances measured here), and with no end that near the
+    answer is a pruned "no_path", not a failure to connect."""
+    Q = _free_configurations(world, 16, 21)
+    compared = 0
+    for q0, qg in zip(Q[:8], Q[8:], strict=True):
+        goal = Goal.pose(world.robot.compute_ee_pose(qg))
+        every = seeder.seeds(q0, goal, 6)
+        if not every[0].success or len(every) < 2:
+            continue
+        lines = np.sort([np.linalg.norm(f.path[-1] - q0) for f in every])
+        bound = 0.5 * (lines[0] + lines[-1])
+        near = [f for f in every if np.linalg.norm(f.path[-1] - q0) < bound]
+        some = seeder.seeds(q0, goal, 6, shorter_than_rad=bound)
+        assert all(np.linalg.norm(f.path[-1] - q0) < bound for f in some)
+        assert {f.path[-1].tobytes() for f in near} <= {f.path[-1].tobytes() for f in some}
+        none = seeder.seeds(q0, goal, 6, shorter_than_rad=0.5 * lines[0])[0]
+        assert not none.success and none.status == "no_path" and none.info["pruned"]
+        compared += 1
+    assert compared >= 3
+
+
 def test_dynamic_obstacle_on_the_shortest_path_reroutes(world, roadmap, seeder):
     rm = roadmap
     rng = np.random.default_rng(4)

@@ -243,15 +243,20 @@ class RoadmapSeeder:
         return self.seeds(q_start, goal, 1)[0]
 
     def seeds(self, q_start: Array, goal: Goal, n_routes: int, deadline: float = math.inf,
-              *, goal_nodes_first: bool = False) -> list[SeedResult]:
+              *, goal_nodes_first: bool = False, shorter_than_rad: float = math.inf
+              ) -> list[SeedResult]:
         """Up to ``n_routes`` seed paths from q_start (K,) to the goal, each ending at another
         of the pose goal's IK solutions (those that connect to the roadmap, in the order
         :meth:`goal_configurations` gives them, nearest the start first; with
         ``goal_nodes_first`` the goal's roadmap nodes (:meth:`goal_nodes`) before them, and
         no IK solutions found from q_start itself: the cheapest route to certify and to find,
-        not the shortest — a first answer to improve on). On failure, one unsuccessful result;
+        not the shortest — a first answer to improve on). With ``shorter_than_rad``, only
+        goal configurations nearer the start than that (joint-space straight line, rad) are
+        connected and routed: no path to the others is shorter (an anytime query's more
+        routes, which must beat its answer so far). On failure, one unsuccessful result;
         status "timeout" when ``deadline`` (a ``time.perf_counter()`` value, s) passed before
-        an answer. ``timing_s`` is the whole query's, shared by all."""
+        an answer, "no_path" with ``info["pruned"]`` when no goal configuration is nearer than
+        ``shorter_than_rad``. ``timing_s`` is the whole query's, shared by all."""
         t0 = time.perf_counter()
         timing = {"ik": 0.0, "connect": 0.0, "search": 0.0, "validate": 0.0}
         robot = self.world.robot
@@ -273,6 +278,11 @@ class RoadmapSeeder:
         timing["ik"] = time.perf_counter() - t
         if status:
             return fail(status, reason=why)
+        if math.isfinite(shorter_than_rad):
+            Q_goal = Q_goal[np.linalg.norm(Q_goal - q_start, axis=1) < shorter_than_rad]
+            if len(Q_goal) == 0:
+                return fail("no_path", pruned=True, reason=(
+                    f"no goal configuration is nearer the start than {shorter_than_rad:.3g} rad"))
         t = time.perf_counter()
         starts, goals = self._connect_ends(q_from, Q_goal, n_routes, deadline)
         timing["connect"] = time.perf_counter() - t
