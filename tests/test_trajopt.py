@@ -20,6 +20,7 @@ from chekhov.collision.distance_terms import (
 from chekhov.collision.exact import ExactChecker, densify
 from chekhov.collision.kernels import signed_distance
 from chekhov.collision.path_check import CERTIFY_MAX_SEGMENT_RAD, path_digest
+from chekhov.errors import ChekhovError
 from chekhov.paths import resample_path
 from chekhov.planners.base import path_length
 from chekhov.planners.certify import check_path
@@ -523,5 +524,5 @@ def test_the_validation_certificate_stands_for_the_certification(pole, rng):
     other = solve_trajopt(build_trajopt(pole, q0, Goal.configuration(q1), seed,
                                         replace(cfg, validate_max_segment_rad=0.5)))
     assert other.certificate is not None and other.certificate.resampled_from is None
-    with pytest.raises(ValueError, match="validate_max_segment_rad"):
+    with pytest.raises(ChekhovError, match="validate_max_segment_rad"):
         TrajOptConfig(validate_max_segment_rad=0.0)

@@ -6,6 +6,7 @@ from dataclasses import dataclass, replace
 from typing import Literal
 
 from chekhov.collision.path_check import CERTIFY_MAX_SEGMENT_RAD
+from chekhov.errors import ChekhovError
 
 
 @dataclass(frozen=True)
@@ -119,8 +120,8 @@ class TrajOptConfig:
 
     def __post_init__(self) -> None:
         v = self.validate_max_segment_rad
-        if not (isinstance(v, int | float) and v > 0):
-            raise ValueError(f"TrajOptConfig.validate_max_segment_rad: must be a number of rad "
+        if not (isinstance(v, int | float) and not isinstance(v, bool) and v > 0):
+            raise ChekhovError(f"TrajOptConfig.validate_max_segment_rad: must be a number of rad "
                              f"> 0 (inf: no split), got {v!r}")
 
     def within(self, seconds: float) -> TrajOptConfig:
