@@ -1,5 +1,7 @@
 """The fast checker against the exact one, and the checkers' behaviour."""
 
+import time
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -277,8 +279,6 @@ def test_budgeted_motion_checks_resumed_decide_the_same(world_of):
     Q = w.robot.sample_uniform(np.random.default_rng(12), 2000)
     Q = Q[w.fast.valid(Q)]
     A, B = Q[:120], Q[120:240]
-    # first, while none of these motions is remembered (decided ones are, MotionMemo)
-    late = w.fast.motions_valid(A, B, 0.02, deadline=0.0)
     ref = w.fast.motions_valid(A, B, 0.02)
     assert 0 < ref.mean() < 1
     out, done, resume, calls = np.zeros(len(A), dtype=bool), 0, 0, 0
@@ -289,6 +289,7 @@ def test_budgeted_motion_checks_resumed_decide_the_same(world_of):
         calls += 1
     np.testing.assert_array_equal(out, ref)
     assert calls > len(A)   # motions were cut and resumed
+    late = w.fast.motions_valid(A, B, 0.02, deadline=0.0)
     assert not (late & ~ref).any() and late.sum() < ref.sum()
     # the first free motion, from every place in the list and when none is left
     free = np.flatnonzero(ref)
@@ -608,9 +609,10 @@ def test_local_clearance_bound_holds_along_the_motion(world_of, scene):
 
 
 def test_decided_motions_are_remembered_until_the_obstacles_change(world_of):
-    """A motion decided once is answered from the checker's memo (the same answer as the
-    kernel's, in plain and first-free calls mixing remembered and new motions); a motion cut
-    by the deadline is not remembered; changing the obstacles forgets every decision."""
+    """``first_free_motion`` answers from the checker's memo of motions it decided before (the
+    kernel's answer, in candidate lists mixing remembered and new motions); a motion cut by
+    the deadline is not remembered; changing the obstacles forgets every decision;
+    ``motions_valid`` neither reads nor fills the memo."""
     from chekhov.collision import validity
 
     w = world_of("tabletop_pole")
@@ -623,32 +625,40 @@ def test_decided_motions_are_remembered_until_the_obstacles_change(world_of):
         return validity.motions_valid(P0, P1, 0.02, 0, 0, validity.NO_BUDGET, False,
                                       fast.packed)[0]
 
+    def expect(free):
+        return int(np.argmax(free)) if free.any() else None
+
     want = kernel(A, B)
     assert 10 <= want.sum() <= len(A) - 10
-    first = fast.motions_valid(A[:80], B[:80], 0.02)          # half of them decided
-    np.testing.assert_array_equal(first, want[:80])
     hits = fast._motion_memo.hits
-    np.testing.assert_array_equal(fast.motions_valid(A[:80], B[:80], 0.02), want[:80])
-    assert fast._motion_memo.hits - hits == 80                 # remembered
-    order = np.random.default_rng(5).permutation(len(A))       # remembered and new, mixed
-    for k in range(0, 60, 3):
-        P0, P1, free = A[order[k:]], B[order[k:]], want[order[k:]]
-        expect = int(np.argmax(free)) if free.any() else None
-        assert fast.first_free_motion(P0, P1, 0.02) == expect
     np.testing.assert_array_equal(fast.motions_valid(A, B, 0.02), want)
-    C, D = Q[320:360], Q[360:400]
-    late = fast.motions_valid(C, D, 0.02, deadline=0.0)       # cut: the rest not remembered
-    np.testing.assert_array_equal(fast.motions_valid(C, D, 0.02), kernel(C, D))
-    assert not (late & ~kernel(C, D)).any()
-    # an obstacle on a free motion's path: remembered "free" is forgotten
-    i = int(np.flatnonzero(want)[0])
+    assert fast._motion_memo.hits == hits                      # not through the memo
+    blocked, free = np.flatnonzero(~want)[:30], np.flatnonzero(want)[:1]
+    pick = np.concatenate([blocked, free])                     # 30 blocked, then a free one
+    assert fast.first_free_motion(A[pick], B[pick], 0.02) == 30
+    assert fast.first_free_motion(A[pick], B[pick], 0.02) == 30
+    assert fast._motion_memo.hits - hits == 31                 # all 31 remembered
+    order = np.random.default_rng(5).permutation(len(A))       # remembered and new, mixed
+    for k in range(0, 100, 3):
+        assert fast.first_free_motion(A[order[k:]], B[order[k:]], 0.02) == \
+            expect(want[order[k:]])
+    C, D = Q[320:480], Q[480:640]
+    cut = np.concatenate([np.flatnonzero(~kernel(C, D)), np.flatnonzero(kernel(C, D))])
+    C, D = C[cut], D[cut]                                      # the blocked first
+    # a deadline 0.1 ms away cuts the list after a few motions (budgeted calls of 16
+    # configurations); those not decided count as blocked and are not remembered as such
+    assert fast.first_free_motion(C, D, 0.02, deadline=time.perf_counter() + 1e-4) in (
+        None, expect(kernel(C, D)))
+    assert fast.first_free_motion(C, D, 0.02) == expect(kernel(C, D))
+    # an obstacle on a free motion's path: the remembered "free" is forgotten
+    i = int(free[0])
     n = int(np.ceil(np.linalg.norm(B[i] - A[i]) / 0.02))
     q_mid = A[i] + (n // 2) / n * (B[i] - A[i])
     T = np.eye(4)
     T[:3, 3] = fast.sphere_centers(q_mid)[-1]
     fast.add_obstacle("memo_probe", Shape("sphere", (0.05,)), T)
     try:
-        assert not fast.motions_valid(A[i:i + 1], B[i:i + 1], 0.02)[0]
+        assert fast.first_free_motion(A[i:i + 1], B[i:i + 1], 0.02) is None
     finally:
         fast.remove_obstacle("memo_probe")
-    assert fast.motions_valid(A[i:i + 1], B[i:i + 1], 0.02)[0]
+    assert fast.first_free_motion(A[i:i + 1], B[i:i + 1], 0.02) == 0
