@@ -553,3 +553,12 @@ def test_goal_last_resorts_wait_for_every_goals_cheap_connection(world, seeder, 
     cheap_fails = True
     starts, goals = seeder._connect_ends(q_start, Q_goal, 1, float("inf"))
     assert calls[1:4] == [(0, False), (1, False), (2, False)] and calls[4] == (0, True)
+    # without last resorts (Roadmap + TrajOpt's more routes) no goal ever gets one, whether
+    # a nearer goal failed its cheap connections or every goal did
+    for fails in (False, True):
+        calls.clear()
+        cheap_fails = fails
+        starts, goals = seeder._connect_ends(q_start, Q_goal, 3, float("inf"),
+                                             last_resorts=False)
+        assert calls[1:] == [(0, False), (1, False), (2, False)]
+        assert [g[0][0] for g in goals] == ([] if fails else [1, 2])

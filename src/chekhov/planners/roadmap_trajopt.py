@@ -344,9 +344,14 @@ class RoadmapTrajOpt(PlannerBase):
         # task cases in each of three scenes, 25-38% of the stage's shortcut time). Asking
         # for the routes in two rounds, the bound tightened by the first round's shortcuts
         # before more ends are connected, saved nothing (80 task cases in four scenes).
+        # A goal end that connects to the roadmap neither directly nor by a bridge is left
+        # out (no tree, no wide search: ``last_resorts``): such a tree ran until the stop in
+        # 4 of 720 cases (60 a scene and family, 2026-11-30), taking the stage's whole
+        # budget, so that TrajOpt never ran; it won none of them.
         bound = run.shortest_rad
         found = self.seeder.seeds(query.q_start, query.goal, self.config.goal_routes,
-                                  deadline=stop, shorter_than_rad=bound - 1e-9)
+                                  deadline=stop, shorter_than_rad=bound - 1e-9,
+                                  last_resorts=False)
         # every route (with more goal IK solutions the first may differ from the first
         # answer's), nearest end first
         routes = sorted((f.path for f in found if f.path is not None), key=_line_length)

@@ -243,8 +243,8 @@ class RoadmapSeeder:
         return self.seeds(q_start, goal, 1)[0]
 
     def seeds(self, q_start: Array, goal: Goal, n_routes: int, deadline: float = math.inf,
-              *, goal_nodes_first: bool = False, shorter_than_rad: float = math.inf
-              ) -> list[SeedResult]:
+              *, goal_nodes_first: bool = False, shorter_than_rad: float = math.inf,
+              last_resorts: bool = True) -> list[SeedResult]:
         """Up to ``n_routes`` seed paths from q_start (K,) to the goal, each ending at another
         of the pose goal's IK solutions (those that connect to the roadmap, in the order
         :meth:`goal_configurations` gives them, nearest the start first; with
@@ -253,7 +253,10 @@ class RoadmapSeeder:
         not the shortest — a first answer to improve on). With ``shorter_than_rad``, only
         goal configurations nearer the start than that (joint-space straight line, rad) are
         connected and routed: no path to the others is shorter (an anytime query's more
-        routes, which must beat its answer so far). On failure, one unsuccessful result;
+        routes, which must beat its answer so far). Without ``last_resorts``, goal
+        configurations are connected only directly or by the cheap bridges, never by the
+        tree or the wide search (``RoadmapConnector.connect``). On failure, one unsuccessful
+        result;
         status "timeout" when ``deadline`` (a ``time.perf_counter()`` value, s) passed before
         an answer, "no_path" with ``info["pruned"]`` when no goal configuration is nearer than
         ``shorter_than_rad``. ``timing_s`` is the whole query's, shared by all."""
@@ -284,7 +287,7 @@ class RoadmapSeeder:
                 return fail("no_path", pruned=True, reason=(
                     f"no goal configuration is nearer the start than {shorter_than_rad:.3g} rad"))
         t = time.perf_counter()
-        starts, goals = self._connect_ends(q_from, Q_goal, n_routes, deadline)
+        starts, goals = self._connect_ends(q_from, Q_goal, n_routes, deadline, last_resorts)
         timing["connect"] = time.perf_counter() - t
         if time.perf_counter() >= deadline:
             return fail("timeout", reason="the time limit passed while connecting")
@@ -357,7 +360,8 @@ class RoadmapSeeder:
         return None, "no_connection", (f"the {end} is exactly free, but the fast checker "
                                        f"rejects it and no exactly free way out was found")
 
-    def _connect_ends(self, q_start: Array, Q_goal: Array, n_routes: int, deadline: float
+    def _connect_ends(self, q_start: Array, Q_goal: Array, n_routes: int, deadline: float,
+                      last_resorts: bool = True
                       ) -> tuple[list[Connection], list[list[tuple[int, Connection]]]]:
         """Connections of the start, and of up to n_routes goal configurations (each a list
         of (goal index, connection)), to the roadmap; none of the goals' when the start has
@@ -368,7 +372,8 @@ class RoadmapSeeder:
         every goal when none connected so — or, asked for more routes, to the goals nearer
         the start than the first that did: a shelf task's nearest IK solution, its hand
         wedged between two boxes, grew its tree for 0.5 s before the first answer while the
-        next one connected directly; it may still win the more-routes stage."""
+        next one connected directly. Without ``last_resorts``, none (Roadmap + TrajOpt's
+        more-routes stage: see ``RoadmapTrajOpt._more_routes``)."""
         starts = self.connector.connect(q_start, deadline=deadline)
         goals: list[list[tuple[int, Connection]]] = []
         if not starts:
@@ -381,6 +386,8 @@ class RoadmapSeeder:
             if g:
                 goals.append(g)
         nearer = len(Q_goal) if not goals else (goals[0][0][0] if n_routes > 1 else 0)
+        if not last_resorts:
+            nearer = 0
         for gi in range(nearer):
             if time.perf_counter() >= deadline or len(goals) == n_routes:
                 break
