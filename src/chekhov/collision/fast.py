@@ -223,6 +223,13 @@ class FastChecker:
                          if isinstance(a, np.ndarray) else type(a) for a in args])
         entry = self._entries.get(key)
         if entry is None:
+            if any(isinstance(a, np.ndarray) and not a.flags.writeable for a in args):
+                # a read-only array (a timed trajectory's positions) is another numba type:
+                # the kernel's version for it would be loaded or compiled at its first call,
+                # mid-query (53 ms for dense_path's walk), so it gets a writable copy
+                return self._run_in(packed, kernel, tuple(
+                    np.array(a) if isinstance(a, np.ndarray) and not a.flags.writeable else a
+                    for a in args))
             full = (*args, packed)
             out = kernel(*full)
             compiled = kernel.overloads.get(tuple(typeof(a) for a in full))

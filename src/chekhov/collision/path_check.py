@@ -186,6 +186,8 @@ def exact_path_decision(fast: FastChecker, exact: ExactChecker, path: Array,
     coal's own certificates cover).
     """
     P = np.ascontiguousarray(path, dtype=np.float64)
+    if not P.flags.writeable:   # as FastChecker._run_in: no read-only kernel versions
+        P = P.copy()
     coal_ = _Coal.make(fast, exact, P, int(substeps))
     coal_.deadline = deadline
     try:
