@@ -10,6 +10,7 @@ The public API is flat::
     result = planner.plan(q_start, chekhov.Goal.pose(T_world_ee))   # PlanResult
 """
 
+from chekhov import _numba_cache  # noqa: F401  (first: the kernels' cache stamp, before any kernel)
 from chekhov.collision.exact import ExactChecker, densify
 from chekhov.collision.fast import Contacts, FastChecker
 from chekhov.errors import (
