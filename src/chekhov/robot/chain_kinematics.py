@@ -120,24 +120,6 @@ class ChainKinematics:
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _axis_rotation(x, y, z, angle, out):  # pragma: no cover - compiled
-    """Rodrigues: rotation by ``angle`` (rad) about the unit axis (x, y, z), written into out
-    (3, 3)."""
-    c = np.cos(angle)
-    s = np.sin(angle)
-    t = 1.0 - c
-    out[0, 0] = t * x * x + c
-    out[0, 1] = t * x * y - s * z
-    out[0, 2] = t * x * z + s * y
-    out[1, 0] = t * x * y + s * z
-    out[1, 1] = t * y * y + c
-    out[1, 2] = t * y * z - s * x
-    out[2, 0] = t * x * z - s * y
-    out[2, 1] = t * y * z + s * x
-    out[2, 2] = t * z * z + c
-
-
-@njit(cache=True, nogil=True, inline="always")
 def _mul3(A, B, out):  # pragma: no cover - compiled
     """out = A @ B for 3x3 matrices (out must not alias A or B)."""
     for i in range(3):
@@ -152,27 +134,34 @@ def chain_fk_arrays(q, parent, R0, p0, axis, R_out, p_out):  # pragma: no cover 
     p_parent_joint, axis): T_k = T_parent(k) · placement_k · Rot(axis_k, q_k). The one forward
     kinematics of the compiled code (IK here, the collision kernels, the distance terms);
     parents come before their children. Hot kernels take the arrays out of the chain once and
-    call this; others call :func:`chain_fk`."""
-    Rq = np.empty((3, 3))
-    A = np.empty((3, 3))
+    call this; others call :func:`chain_fk`.
+
+    Written with scalars, row by row, and no work arrays: the two 3 × 3 arrays it allocated
+    on every call were a third of its time (the Panda's chain: 414 → 266 ns, the same
+    poses to the bit; measured in one run)."""
     for k in range(q.shape[0]):
-        _axis_rotation(axis[k, 0], axis[k, 1], axis[k, 2], q[k], Rq)
+        x, y, z = axis[k, 0], axis[k, 1], axis[k, 2]
+        c = np.cos(q[k])
+        s = np.sin(q[k])
+        t = 1.0 - c
+        # Rot(axis_k, q_k) (Rodrigues: about the unit axis (x, y, z))
+        r00, r01, r02 = t * x * x + c, t * x * y - s * z, t * x * z + s * y
+        r10, r11, r12 = t * x * y + s * z, t * y * y + c, t * y * z - s * x
+        r20, r21, r22 = t * x * z - s * y, t * y * z + s * x, t * z * z + c
         pk = parent[k]
-        if pk < 0:
-            for a in range(3):
+        for a in range(3):   # row a of R_parent · R0_k, then of it · Rot
+            if pk < 0:
+                a0, a1, a2 = R0[k, a, 0], R0[k, a, 1], R0[k, a, 2]
                 p_out[k, a] = p0[k, a]
-                for b in range(3):
-                    A[a, b] = R0[k, a, b]
-        else:
-            for a in range(3):
-                p_out[k, a] = (R_out[pk, a, 0] * p0[k, 0] + R_out[pk, a, 1] * p0[k, 1]
-                               + R_out[pk, a, 2] * p0[k, 2] + p_out[pk, a])
-                for b in range(3):
-                    A[a, b] = (R_out[pk, a, 0] * R0[k, 0, b] + R_out[pk, a, 1] * R0[k, 1, b]
-                               + R_out[pk, a, 2] * R0[k, 2, b])
-        for a in range(3):
-            for b in range(3):
-                R_out[k, a, b] = A[a, 0] * Rq[0, b] + A[a, 1] * Rq[1, b] + A[a, 2] * Rq[2, b]
+            else:
+                u0, u1, u2 = R_out[pk, a, 0], R_out[pk, a, 1], R_out[pk, a, 2]
+                p_out[k, a] = u0 * p0[k, 0] + u1 * p0[k, 1] + u2 * p0[k, 2] + p_out[pk, a]
+                a0 = u0 * R0[k, 0, 0] + u1 * R0[k, 1, 0] + u2 * R0[k, 2, 0]
+                a1 = u0 * R0[k, 0, 1] + u1 * R0[k, 1, 1] + u2 * R0[k, 2, 1]
+                a2 = u0 * R0[k, 0, 2] + u1 * R0[k, 1, 2] + u2 * R0[k, 2, 2]
+            R_out[k, a, 0] = a0 * r00 + a1 * r10 + a2 * r20
+            R_out[k, a, 1] = a0 * r01 + a1 * r11 + a2 * r21
+            R_out[k, a, 2] = a0 * r02 + a1 * r12 + a2 * r22
 
 
 @njit(cache=True, nogil=True, inline="always")
