@@ -264,6 +264,11 @@ def collisions(Q, world, work, out, stop):  # pragma: no cover - compiled
                     done[g] = True
             hit = False
             for s in range(gstart[a], gstart[a + 1]):
+                x = cw[s, 0] - gw[b, 0]
+                y = cw[s, 1] - gw[b, 1]
+                z = cw[s, 2] - gw[b, 2]
+                if x * x + y * y + z * z >= (sr[s] + gr[b]) ** 2:
+                    continue   # sphere s clears group b's bounding sphere, so all its spheres
                 for t in range(gstart[b], gstart[b + 1]):
                     x = cw[s, 0] - cw[t, 0]
                     y = cw[s, 1] - cw[t, 1]
