@@ -432,7 +432,7 @@ def test_swept_minimum_matches_dense_sampling_along_the_segment(pole, o, ends):
     o %= len(env.kind)
     c0 = env.p[o] + np.asarray(ends[:3])
     c1 = env.p[o] + np.asarray(ends[3:])
-    best, alpha = _swept_min(env.kind[o], env.R[o], env.p[o], env.size[o], c0, c1,
+    best, alpha = _swept_min(env.kind[o], env.R[o], env.p[o], env.size[o], *c0, *c1,
                              SWEPT_ITERATIONS)
     t = np.linspace(0.0, 1.0, 20001)
     dense = min(signed_distance(env.kind[o], env.R[o], env.p[o], env.size[o],

@@ -60,7 +60,19 @@ def _in_frame(R, p, x):  # pragma: no cover - compiled
 @njit(cache=True, nogil=True, inline="always")
 def signed_distance(kind, R, p, size, x):  # pragma: no cover - compiled
     """Signed distance (m) from point x to the obstacle surface (negative inside)."""
-    l0, l1, l2 = _in_frame(R, p, x)
+    return signed_distance_xyz(kind, R, p, size, x[0], x[1], x[2])
+
+
+@njit(cache=True, nogil=True, inline="always")
+def signed_distance_xyz(kind, R, p, size, x0, x1, x2):  # pragma: no cover - compiled
+    """:func:`signed_distance` of the point (x0, x1, x2), m: for callers that have the point as
+    scalars (a (3,) work array allocated per call cost a third of the swept-sphere terms)."""
+    d0 = x0 - p[0]
+    d1 = x1 - p[1]
+    d2 = x2 - p[2]
+    l0 = R[0, 0] * d0 + R[1, 0] * d1 + R[2, 0] * d2
+    l1 = R[0, 1] * d0 + R[1, 1] * d1 + R[2, 1] * d2
+    l2 = R[0, 2] * d0 + R[1, 2] * d1 + R[2, 2] * d2
     if kind == SPHERE:
         return np.sqrt(l0 * l0 + l1 * l1 + l2 * l2) - size[0]
     if kind == BOX:
