@@ -3,6 +3,7 @@ obstacle, and clear errors."""
 
 import time
 from dataclasses import replace
+from functools import partial
 
 import numpy as np
 import pytest
@@ -27,6 +28,8 @@ from chekhov.planners.certify import check_path
 from chekhov.planners.query import PlanQuery
 from chekhov.robot.goal import Goal
 from chekhov.robot.robot import Robot
+from chekhov.trajopt import _osqp
+from chekhov.trajopt import qp as trajopt_qp
 from chekhov.trajopt.config import TrajOptConfig
 from chekhov.trajopt.problem import TrajOptError, build_trajopt, straight_line_seed
 from chekhov.trajopt.qp import TrajOptQP
@@ -185,6 +188,32 @@ def test_qp_residual_slacks_match_its_assembled_rows(pole, rng):
         assert prob.merit(e, 7.0) == pytest.approx(
             float(np.sum((np.diff(Q, axis=0) * prob.weights) ** 2))
             + 7.0 * sum(coeff[k] * float(x.sum()) for k, x in v.items()), rel=1e-12)
+
+
+def test_the_direct_osqp_solver_gives_the_public_wrappers_answers(pole, monkeypatch):
+    """The SQP's OSQP without the Python wrapper (``trajopt._osqp``: the compiled solver
+    called directly, its per-call checks skipped) answers every step exactly as OSQP's public
+    ``osqp.OSQP`` does: a pole-crossing line's run, replayed step by step (set-up, a trust
+    shrink with the same matrix, a relinearisation with new values) through both."""
+    assert _osqp._EXT is not None    # OSQP 1.x's bindings: the fast path is the one tested
+    q0, q1, seed = _pole_crossing_lines(pole, 1)[0]
+    prob = build_trajopt(pole, q0, Goal.configuration(q1), seed, TrajOptConfig())
+    steps = []
+    for direct in (True, False):
+        monkeypatch.setattr(trajopt_qp, "QPSolver", partial(_osqp.QPSolver, direct=direct))
+        qp = TrajOptQP(prob)
+        ev = prob.evaluate(prob.seed)
+        x1, m1, s1 = qp.solve(ev, prob.seed.ravel(), 0.2, 10.0)
+        x2, m2, s2 = qp.solve(ev, prob.seed.ravel(), 0.02, 10.0)     # the same matrix
+        ev2 = prob.evaluate(x2.reshape(prob.seed.shape))
+        x3, m3, s3 = qp.solve(ev2, x2, 0.2, 100.0)                   # new values
+        steps.append(((x1, x2, x3), (m1, m2, m3), (s1, s2, s3), qp.admm_iterations))
+    (x_direct, m_direct, s_direct, it_direct), (x_public, m_public, s_public, it_public) = steps
+    assert s_direct == s_public and s_direct[0] == "solved" and it_direct == it_public
+    assert m_direct == m_public
+    for a, b in zip(x_direct, x_public, strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(x_direct[0], prob.seed.ravel())     # the steps moved
 
 
 def _pole_crossing_lines(pole, n):

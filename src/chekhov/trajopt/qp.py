@@ -17,10 +17,10 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-import osqp
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
+from chekhov.trajopt._osqp import QPSolver
 from chekhov.trajopt.kernels import fill_collision_rows, residual_slacks
 from chekhov.trajopt.problem import Evaluation, TrajOptProblem
 
@@ -96,7 +96,7 @@ class TrajOptQP:
             np.zeros(0)
         self._assemble_pattern()
         self.P = _smoothness_hessian(problem, n_z)
-        self._solver: osqp.OSQP | None = None
+        self._solver: QPSolver | None = None
         self._last_ev: Evaluation | None = None
         self.admm_iterations = 0
         self._l = np.zeros(self.n_rows)
@@ -284,32 +284,27 @@ class TrajOptQP:
             A = sp.csc_matrix((Ax, self._A_rows[self._order],
                                np.concatenate([[0], np.cumsum(col_counts)])),
                               shape=(self.n_rows, self.n_z))
-            # naming the backend skips OSQP's search for the CUDA and MKL ones, whose failed
-            # imports hit the file system on every construction (0.5 ms a plan)
-            self._solver = osqp.OSQP(algebra="builtin")
             eps = self.problem.config.osqp_eps
-            self._solver.setup(self.P, q, A, lo_, u, verbose=False, eps_abs=eps, eps_rel=eps,
-                               polishing=False, max_iter=4000, warm_starting=True,
-                               check_termination=5, scaling=0,
-                               rho=self.problem.config.osqp_rho)
+            self._solver = QPSolver(self.P, q, A, lo_, u, {
+                "verbose": False, "eps_abs": eps, "eps_rel": eps, "polishing": False,
+                "max_iter": 4000, "warm_starting": True, "check_termination": 5,
+                "scaling": 0, "rho": self.problem.config.osqp_rho})
         elif relinearised:
-            self._solver.update(Ax=Ax, l=lo_, u=u, q=q)
+            self._solver.update(Ax=Ax, lower=lo_, upper=u, q=q)
         else:  # trust-region shrink: same matrix, no refactorisation
-            self._solver.update(l=lo_, u=u, q=q)
+            self._solver.update(lower=lo_, upper=u, q=q)
         if relinearised:  # start ADMM at the linearisation point and its violations
             z0 = np.concatenate([x_bar, np.maximum(self._residual_slacks(x_bar, lo_, u), 0.0)])
-            self._solver.warm_start(x=z0)
-        self._solver.update_settings(time_limit=time_limit_s if time_limit_s > 0 else 1e10)
-        res = self._solver.solve(raise_error=False)
-        self.admm_iterations += int(res.info.iter)
-        x = res.x
+            self._solver.warm_start(z0)
+        x, iterations, status = self._solver.solve(time_limit_s if time_limit_s > 0 else 1e10)
+        self.admm_iterations += iterations
         if x is None or not np.all(np.isfinite(x)):
-            return x_bar.copy(), np.inf, str(res.info.status)
+            return x_bar.copy(), np.inf, status
         xs = np.clip(x[:self.n_x], lo_[:self.n_x], u[:self.n_x])
         s_model = np.maximum(self._residual_slacks(xs, lo_, u), 0.0)
         obj = self.problem.smoothness(xs.reshape(-1, self.problem.dof)) \
             + mu * float(self.slack_coeff @ s_model)
-        return xs, obj, str(res.info.status)
+        return xs, obj, status
 
     def fits(self, ev: Evaluation) -> bool:
         """Whether every term with a gradient at ev has a row (else rebuild with
