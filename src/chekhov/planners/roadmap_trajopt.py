@@ -44,10 +44,20 @@ no faster. On a UR5 (30 tabletop_pole tasks, two runs): length 3.22 → 3.16 rad
 22 → 24 ms; every answer exactly free at 400 substeps."""
 
 
+SEGMENT_TERMS = 4
+"""Swept-sphere terms kept per segment in Roadmap + TrajOpt's TrajOpt (the defaults': 8). Its
+seeds are collision-free and hug few obstacles at once, so the four closest pairs of a
+segment carry its constraint; a smaller QP solves faster, and every answer is validated
+exactly anyway. Measured (60 cases a scene, seed 0, each variant with its own world,
+alternating twice, 2026-11-30): task cases, mean plan time kitchen 20.3 → 18.7 ms, shelf_boxes
+16.3 → 15.2, panda_cage 13.4 → 12.2, panda_table_shelf 10.4 → 9.7, tabletop_container 10.7 →
+11.1; mean length −1.9% to +0.5%; random cases (kitchen, panda_cage) within 2%; no failure."""
+
+
 def roadmap_trajopt_config() -> TrajOptConfig:
     """TrajOpt's settings in Roadmap + TrajOpt: the defaults, its seed resampled at
-    :data:`SEED_STEP_RAD`."""
-    return TrajOptConfig(max_step_rad=SEED_STEP_RAD)
+    :data:`SEED_STEP_RAD`, :data:`SEGMENT_TERMS` swept terms per segment."""
+    return TrajOptConfig(max_step_rad=SEED_STEP_RAD, terms_per_segment=SEGMENT_TERMS)
 
 
 @dataclass(frozen=True)
