@@ -92,8 +92,8 @@ class ExactChecker:
             M[lo, hi] = True
         gm.setCollisionPairs(M, True)   # pinocchio adds (i, j), i < j, in row-major order
         self.geom_data = pin.GeometryData(gm)
-        self._margin_data = None
-        self._spheres = None
+        self._new_margin_data()
+        self._spheres = self._bounding_spheres()
         self._pairs = np.argwhere(np.triu(M, 1))   # (P, 2), in the model's order
         self._hull_pairs = self._hulls.covers(self._pairs)
         self._weights = pair_weights(self.model, gm, self._pairs, self._radii)
@@ -135,16 +135,26 @@ class ExactChecker:
         for o, (shape, T) in zip(objs, obstacles.values(), strict=True):
             _resize(o.geometry, shape)
             o.placement = pin.SE3(np.asarray(T, dtype=float))
-        self._placed = None      # the margin data's placements are stale
-        self._spheres = None
+        self._moved(mine)
         return True
+
+    def _moved(self, names: list[str]) -> None:
+        """After obstacles ``names`` were moved or resized in place: the margin data's
+        placements are stale, and their bounding spheres (fixed to the world) are set anew."""
+        self._placed = None
+        if self._spheres is not None:
+            _, centre, radius = self._spheres
+            for n in names:
+                k = self._obstacles[n]
+                g = self.geom_model.geometryObjects[k]
+                centre[k] = g.placement.act(np.asarray(g.geometry.aabb_center))
+                radius[k] = g.geometry.aabb_radius
 
     def move_obstacle(self, name: str, T_world_obj: Array) -> None:
         self.geom_model.geometryObjects[self._obstacles[name]].placement = pin.SE3(
             np.asarray(T_world_obj, dtype=float))
         self.geom_data = pin.GeometryData(self.geom_model)
-        self._margin_data = None
-        self._spheres = None
+        self._moved([name])
 
     def remove_obstacle(self, name: str) -> None:
         idx = self._obstacles.pop(name)
@@ -237,13 +247,21 @@ class ExactChecker:
             out[i] = pin.computeDistance(gm, gd, int(pairs[i])).min_distance
         return out
 
+    def _new_margin_data(self) -> None:
+        """A new GeometryData for :meth:`pairs_within` and :meth:`pair_distances`, its margins
+        0: made when the collision pairs or the obstacles' data change, not at the first
+        query that asks coal for margins after (4.5 ms for the kitchen's 1493 pairs; it was
+        made then, and a 3 ms query on a kitchen task case returned 4.7 ms late,
+        ``benchmarks/deadline.py``)."""
+        self._margin_data = pin.GeometryData(self.geom_model)
+        self._margins = np.zeros(len(self.geom_model.collisionPairs))
+        self._placed = None
+
     def _margin_geometry(self) -> pin.GeometryData:
-        """The GeometryData of :meth:`pairs_within` and :meth:`pair_distances` (a new one,
-        its margins 0, after the obstacles changed)."""
+        """The GeometryData of :meth:`pairs_within` and :meth:`pair_distances`."""
         if self._margin_data is None:
-            self._margin_data = pin.GeometryData(self.geom_model)
-            self._margins = np.zeros(len(self.geom_model.collisionPairs))
-            self._placed = None
+            self._new_margin_data()
+        assert self._margin_data is not None
         return self._margin_data
 
     def _place(self, q: Array) -> pin.GeometryData:
@@ -256,19 +274,24 @@ class ExactChecker:
                                          self._placed)
         return gd
 
+    def _bounding_spheres(self) -> tuple[NDArray[np.int64], Array, Array]:
+        """Every geometry's bounding sphere (coal's local AABB): its joint, centre in that
+        joint's frame (m) and radius (m), for :meth:`pair_bounds`. Made when the geometries
+        change, not at the first query that needs them (0.5-0.8 ms for Baxter's scenes)."""
+        objs = self.geom_model.geometryObjects
+        for o in objs:
+            o.geometry.computeLocalAABB()
+        return (np.array([o.parentJoint for o in objs], dtype=np.int64),
+                np.array([o.placement.act(np.asarray(o.geometry.aabb_center)) for o in objs]),
+                np.array([o.geometry.aabb_radius for o in objs], dtype=float))
+
     def pair_bounds(self, q: Array, pairs: NDArray[np.int64]) -> Array:
         """Lower bounds (m) on the distance of each collision pair in ``pairs`` (indices into
         ``geom_model.collisionPairs``) at q (K,), from bounding spheres of the geometries
         (coal's local AABBs): cheap (joint placements and arithmetic, no coal query), loose by
         up to the geometries' sizes."""
         if self._spheres is None:
-            objs = self.geom_model.geometryObjects
-            for o in objs:
-                o.geometry.computeLocalAABB()
-            self._spheres = (
-                np.array([o.parentJoint for o in objs], dtype=np.int64),
-                np.array([o.placement.act(np.asarray(o.geometry.aabb_center)) for o in objs]),
-                np.array([o.geometry.aabb_radius for o in objs], dtype=float))
+            self._spheres = self._bounding_spheres()
         joint, centre, radius = self._spheres
         pin.forwardKinematics(self.model, self.data, np.asarray(q, dtype=float))
         R = np.array([M.rotation for M in self.data.oMi])
