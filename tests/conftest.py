@@ -1,3 +1,5 @@
+import gc
+
 import numpy as np
 import pytest
 from hypothesis import settings
@@ -24,6 +26,15 @@ def world_of(worlds):
             worlds[name] = World.load(name)
         return worlds[name]
     return get
+
+
+@pytest.fixture(autouse=True)
+def _heap_unfrozen():
+    """Warm-ups freeze the heap out of the garbage collector's way (``chekhov._heap``): for
+    a process that plans for hours; in a test session, what one test froze is made
+    collectable again after it, so that later tests' garbage cycles are not kept."""
+    yield
+    gc.unfreeze()
 
 
 @pytest.fixture()

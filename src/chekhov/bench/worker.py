@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from chekhov._heap import settle_heap
 from chekhov.bench.config import BenchConfig
 from chekhov.bench.record import RunRecord
 from chekhov.bench.registry import PlannerSpec, seed_planner_name
@@ -32,7 +33,8 @@ class BenchWorker:
     """Runs :class:`RunTask` s for one :class:`BenchConfig`; caches worlds, roadmaps and
     planners by scene (built on first use, never shared between processes). With
     ``config.warm_up`` each planner first plans its first task once, untimed and discarded,
-    with a limit of at most ``WARM_UP_LIMIT_S`` s (numba caches, first-call setup)."""
+    with a limit of at most ``WARM_UP_LIMIT_S`` s (numba caches, first-call setup), and the
+    objects then alive are frozen out of the garbage collector's way (``_heap.settle_heap``)."""
 
     def __init__(self, config: BenchConfig) -> None:
         self.config = config
@@ -93,6 +95,7 @@ class BenchWorker:
                 self.warm.add((task.scene, task.planner))
                 with contextlib.suppress(Exception):  # the timed run reports any error
                     planner.plan(q0, goal, min(task.time_limit_s, WARM_UP_LIMIT_S))
+                settle_heap()   # the worker's long-lived state out of the collector's way
             reseed(planner, task.seed)
             t0 = time.perf_counter()
             r = planner.plan(q0, goal, task.time_limit_s)
