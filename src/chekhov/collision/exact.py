@@ -249,10 +249,10 @@ class ExactChecker:
 
     def _new_margin_data(self) -> None:
         """A new GeometryData for :meth:`pairs_within` and :meth:`pair_distances`, its margins
-        0: made when the collision pairs or the obstacles' data change, not at the first
-        query that asks coal for margins after (4.5 ms for the kitchen's 1493 pairs; it was
-        made then, and a 3 ms query on a kitchen task case returned 4.7 ms late,
-        ``benchmarks/deadline.py``)."""
+        0: made when the collision pairs are rebuilt (an obstacle moved or resized in place
+        keeps it, :meth:`_moved`), not by the first query that asks coal for margins after
+        (4.5 ms for the kitchen's 1493 pairs; made there, a 3 ms query on a kitchen task case
+        returned 4.7 ms late, ``benchmarks/deadline.py``)."""
         self._margin_data = pin.GeometryData(self.geom_model)
         self._margins = np.zeros(len(self.geom_model.collisionPairs))
         self._placed = None
