@@ -54,12 +54,13 @@ class ExactChecker:
         self._hulls = HullBounds(self.geom_model, self._robot_ngeoms)
         self._hull_pairs = np.zeros(0, dtype=bool)   # per collision pair: a hull on a side
         self._radii: dict[int, Array] = {}   # motion bounds of the robot's geometries
-        # collision data whose requests carry per-pair security margins (pairs_within)
-        self._margin_data: pin.GeometryData | None = None
-        self._margins = np.zeros(0)
+        # collision data whose requests carry per-pair security margins (pairs_within) and
+        # the bounding spheres of the geometries (pair_bounds: joint, centre in its frame,
+        # radius): made by _rebuild, below, and at every rebuild after
+        self._margin_data: pin.GeometryData
+        self._margins: Array
         self._placed: Array | None = None   # where the margin data's geometries are placed
-        # bounding spheres of the geometries (pair_bounds): joint, centre in its frame, radius
-        self._spheres: tuple[NDArray[np.int64], Array, Array] | None = None
+        self._spheres: tuple[NDArray[np.int64], Array, Array]
         self._obstacles: dict[str, int] = {}
         if scene is not None:
             for o in scene.objects:
@@ -142,13 +143,12 @@ class ExactChecker:
         """After obstacles ``names`` were moved or resized in place: the margin data's
         placements are stale, and their bounding spheres (fixed to the world) are set anew."""
         self._placed = None
-        if self._spheres is not None:
-            _, centre, radius = self._spheres
-            for n in names:
-                k = self._obstacles[n]
-                g = self.geom_model.geometryObjects[k]
-                centre[k] = g.placement.act(np.asarray(g.geometry.aabb_center))
-                radius[k] = g.geometry.aabb_radius
+        _, centre, radius = self._spheres
+        for n in names:
+            k = self._obstacles[n]
+            g = self.geom_model.geometryObjects[k]
+            centre[k] = g.placement.act(np.asarray(g.geometry.aabb_center))
+            radius[k] = g.geometry.aabb_radius
 
     def move_obstacle(self, name: str, T_world_obj: Array) -> None:
         self.geom_model.geometryObjects[self._obstacles[name]].placement = pin.SE3(
@@ -259,9 +259,6 @@ class ExactChecker:
 
     def _margin_geometry(self) -> pin.GeometryData:
         """The GeometryData of :meth:`pairs_within` and :meth:`pair_distances`."""
-        if self._margin_data is None:
-            self._new_margin_data()
-        assert self._margin_data is not None
         return self._margin_data
 
     def _place(self, q: Array) -> pin.GeometryData:
@@ -290,8 +287,6 @@ class ExactChecker:
         ``geom_model.collisionPairs``) at q (K,), from bounding spheres of the geometries
         (coal's local AABBs): cheap (joint placements and arithmetic, no coal query), loose by
         up to the geometries' sizes."""
-        if self._spheres is None:
-            self._spheres = self._bounding_spheres()
         joint, centre, radius = self._spheres
         pin.forwardKinematics(self.model, self.data, np.asarray(q, dtype=float))
         R = np.array([M.rotation for M in self.data.oMi])
