@@ -26,7 +26,7 @@ from chekhov.execute.motion import (
 )
 from chekhov.execute.obstacles import MovingObstacle, ObstacleTracks
 from chekhov.execute.script import EpisodeScript, GoalChange, Kick, make_script, start_and_goal
-from chekhov.execute.simulate import EpisodeRecord, SimConfig, shrunk_kick
+from chekhov.execute.simulate import EpisodeRecord, SimConfig, escape_motions, shrunk_kick
 from chekhov.execute.swerve import Swerver
 from chekhov.robot.goal import Goal
 from chekhov.scene.model import Shape
@@ -237,9 +237,10 @@ def _scene_evader(world, limits):
     return _seeded_evader(world, ObstacleTracks(), limits, seed=0)
 
 
-def _heading_into_the_scene(world, limits, rng):
-    """A moving arm 10-30 ms from the scene at 0.5-1x the slowest joint's velocity limit,
-    heading straight at it (the first contact along a random direction, exact checker)."""
+def _heading_into_the_scene(world, limits, rng, ahead_s=(0.01, 0.03)):
+    """A moving arm ``ahead_s`` (10-30 ms) from the scene at 0.5-1x the slowest joint's
+    velocity limit, heading straight at it (the first contact along a random direction, exact
+    checker)."""
     robot = world.robot
     while True:
         q = robot.sample_uniform(rng, 1)[0]
@@ -252,7 +253,7 @@ def _heading_into_the_scene(world, limits, rng):
         if free.all():
             continue
         speed = rng.uniform(0.5, 1.0) * limits.velocity.min()
-        q0 = Q[int(np.argmin(free)) - 1] - d * speed * rng.uniform(0.01, 0.03)
+        q0 = Q[int(np.argmin(free)) - 1] - d * speed * rng.uniform(*ahead_s)
         if world.exact.is_valid(q0) and robot.within_limits(q0[None]).all():
             return State(q0, d * speed, np.zeros_like(q0))
 
@@ -339,7 +340,7 @@ def test_a_kick_never_throws_a_moving_arm_into_the_scene_faster_than_any_reactio
     for _ in range(20):
         start = _heading_into_the_scene(world, limits, rng)
         dq = shrunk_kick(world, start.q, start.qd, rng.uniform(-0.1, 0.1, robot.dof), 4,
-                         limits.acceleration)
+                         limits)
         if dq is None:
             dropped += 1
             continue
@@ -352,9 +353,35 @@ def test_a_kick_never_throws_a_moving_arm_into_the_scene_faster_than_any_reactio
         z = np.zeros_like(q)
         if not (world.exact.is_valid(q + dq) and robot.within_limits((q + dq)[None]).all()):
             continue
-        assert np.array_equal(shrunk_kick(world, q, z, dq, 4, limits.acceleration), dq)
+        assert np.array_equal(shrunk_kick(world, q, z, dq, 4, limits), dq)
         whole += 1
     assert dropped >= 10 and whole >= 10
+
+
+def test_a_kick_leaves_a_moving_arm_a_motion_within_the_limits_that_escapes(world, limits):
+    """On arms heading into the scene at full speed 0.1-0.3 s away (going on for 0.1 s is
+    free, stopping may not be), a kept kick leaves an escape: one of the escape motions (the
+    brake, then constant accelerations) is exactly free at 1 ms steps for 0.5 s and within
+    the joint limits; some kicks are shrunk or dropped for it."""
+    robot = world.robot
+    world.fast.set_obstacles({})
+    world.exact.set_obstacles({})
+    rng = np.random.default_rng(3)
+    kept = changed = 0
+    for _ in range(16):
+        start = _heading_into_the_scene(world, limits, rng, ahead_s=(0.1, 0.3))
+        qd = start.qd / np.abs(start.qd).max() * limits.velocity.min()   # full speed
+        dq0 = rng.uniform(-0.1, 0.1, robot.dof)
+        dq = shrunk_kick(world, start.q, qd, dq0, 4, limits)
+        changed += dq is None or not np.array_equal(dq, dq0)
+        if dq is None:
+            continue
+        kept += 1
+        escapes = escape_motions(start.q + dq, qd, limits, 501, 256, np.random.default_rng(0),
+                                 dt_s=1e-3)   # the kick's own motions, 10x finer
+        assert any(robot.within_limits(Q).all() and all(world.exact.is_valid(q) for q in Q)
+                   for Q in escapes)
+    assert kept >= 4 and changed >= 4
 
 
 def test_a_kicked_arm_whose_join_back_is_free_is_joined_back_at_once(world, limits):

@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 
 from chekhov.collision.exact import ExactChecker, coal_shape
 from chekhov.execute.obstacles import MovingObstacle
-from chekhov.execute.simulate import EpisodeRecord
+from chekhov.execute.simulate import EpisodeRecord, constant_acceleration_path
 from chekhov.timing import Limits
 from chekhov.world import World
 
@@ -185,19 +185,3 @@ def _escapable(truth: TrueWorld, record: EpisodeRecord, hit: int, limits: Limits
                for q, t in zip(Q[1:], ts[1:], strict=True)):
             return True
     return False
-
-
-def constant_acceleration_path(q0: Array, v0: Array, acc: Array, n: int, dt: float,
-                               limits: Limits) -> Array:
-    """(n, K) rad: from q0 (K,) rad at velocity v0 (K,) rad/s, each joint at constant
-    acceleration ``acc`` (K,) rad/s² until its velocity limit, every dt (s). Exact for that
-    motion (velocity linear over each step: its positions advance by the step's mean
-    velocity), so it stays within the acceleration limits; integrating with the step's end
-    velocity would move up to twice as far in the first step."""
-    Q = np.empty((n, len(q0)))
-    Q[0], v = q0, np.asarray(v0, dtype=float)
-    for k in range(1, n):
-        v_next = np.clip(v + acc * dt, -limits.velocity, limits.velocity)
-        Q[k] = Q[k - 1] + 0.5 * (v + v_next) * dt
-        v = v_next
-    return Q

@@ -9,7 +9,9 @@ end, radius :data:`FOREARM_RADIUS_M`) moves at most 1 m/s and its whole sweep st
 :data:`SHOULDER_CLEARANCE_M` from the arm's first joint; a kick is at most 0.1 rad per joint
 and is shrunk (halved, up to 4 times, when it lands:
 :func:`~chekhov.execute.simulate.shrunk_kick`) until the kicked configuration is within the
-limits and collision-free, and so is the kicked arm going on at its velocity for 0.1 s. The
+limits and collision-free, so is the kicked arm going on at its velocity for 0.1 s, and one
+motion within the limits from the kicked state (a brake, or a constant acceleration) stays
+free for 0.5 s. The
 forearm appears at least 0.3 m from the arm (as it is in the undisturbed motion then), so its
 first frame is no contact already. Units: s, m, rad.
 """

@@ -23,6 +23,7 @@ next step.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,6 +36,7 @@ from chekhov.execute.motion import Motion, State
 from chekhov.execute.obstacles import MovingObstacle, Obstacles, obstacles_at
 from chekhov.execute.script import EpisodeScript
 from chekhov.robot.goal import Goal
+from chekhov.timing import Limits
 from chekhov.world import World
 
 Array = NDArray[np.float64]
@@ -112,7 +114,7 @@ def run_episode(world: World, executor: Executor, script: EpisodeScript, deadlin
         kicked = False
         while kicks and kicks[0].t <= t + 1e-9:
             dq = shrunk_kick(world, q, qd, kicks.pop(0).dq, config.kick_halvings,
-                              executor.limits.acceleration)
+                             executor.limits)
             if dq is not None:
                 q, kicked = q + dq, True
                 applied.append(dq)
@@ -208,32 +210,83 @@ def _relabel_lag(reactions: list[Reaction], first_new: int, kicked: bool) -> Non
 
 
 def shrunk_kick(world: World, q: Array, qd: Array, dq: Array, halvings: int,
-                 acceleration: Array) -> Array | None:
+                limits: Limits) -> Array | None:
     """``dq`` (K,) rad, halved until q + dq is within the limits — and so is where it comes to
-    rest braking at ``acceleration`` (K,) rad/s² from velocity ``qd`` (a bump does not throw
-    the arm past a limit) — and the kicked arm, going on at ``qd`` for
-    :data:`KICK_WAY_OUT_S`, stays free (the exact decision on that straight motion, the
-    world's obstacles: a bump does not throw a moving arm into the scene faster than any
-    reaction: kitchen episodes 2 and 8 had the arm 20 ms from a cabinet at 1.4-2.2 rad/s);
-    or None."""
-    stop = qd * np.abs(qd) / (2 * acceleration)
+    rest braking at ``limits.acceleration`` from velocity ``qd`` (a bump does not throw the arm
+    past a limit) — and the kicked arm has a way out: going on at ``qd`` for
+    :data:`KICK_GO_ON_S` is free (the exact decision on that straight motion, the world's
+    obstacles: a bump does not throw a moving arm into the scene faster than any reaction:
+    kitchen episodes 2 and 8 had the arm 20 ms from a cabinet at 1.4-2.2 rad/s), and so is
+    one of :func:`escape_motions` for :data:`KICK_ESCAPE_S` (fast checker, which is
+    conservative: tabletop_container episode 16 had the arm kicked at 1.5 rad/s towards the
+    container, where going on for 0.1 s was free but no brake or other motion within the
+    limits was, and it hit the container); or None."""
+    stop = qd * np.abs(qd) / (2 * limits.acceleration)
     for _ in range(halvings + 1):
         q2 = q + dq
         if world.robot.within_limits(np.vstack([q2, q2 + stop])).all() and \
-                world.exact.is_valid(q2) and _goes_on_free(world, q2, qd):
+                world.exact.is_valid(q2) and _goes_on_free(world, q2, qd) and \
+                _can_escape(world, q2, qd, limits):
             return dq
         dq = dq / 2
     return None
 
 
-KICK_WAY_OUT_S = 0.1
+KICK_GO_ON_S = 0.1
 """s: how long a kicked arm going on at its velocity must stay free (:func:`shrunk_kick`)."""
+KICK_ESCAPE_S = 0.5
+"""s: how long one of a kicked arm's escape motions must stay free (:func:`shrunk_kick`)."""
+KICK_ESCAPES = 256
+"""Random escape motions tried from a kicked state (:func:`escape_motions`)."""
+ESCAPE_DT_S = 0.01
+"""s: the step of a kicked state's escape motions' positions (:func:`escape_motions`)."""
 
 
 def _goes_on_free(world: World, q: Array, qd: Array) -> bool:
-    """Whether the straight motion q → q + qd·:data:`KICK_WAY_OUT_S` (rad) is free by the exact
+    """Whether the straight motion q → q + qd·:data:`KICK_GO_ON_S` (rad) is free by the exact
     decision (at most 0.01 rad apart)."""
-    end = q + np.asarray(qd) * KICK_WAY_OUT_S
+    end = q + np.asarray(qd) * KICK_GO_ON_S
     substeps = max(1, int(np.ceil(float(np.abs(end - q).max()) / 0.01)))
     return bool(exact_path_decision(world.fast, world.exact, np.vstack([q, end]),
                                     substeps).valid)
+
+
+def _can_escape(world: World, q: Array, qd: Array, limits: Limits) -> bool:
+    """Whether one of :func:`escape_motions` from (q, qd) stays within the joint limits and
+    fast-free (so exactly free) for :data:`KICK_ESCAPE_S`, at 10 ms steps."""
+    n = round(KICK_ESCAPE_S / ESCAPE_DT_S) + 1
+    robot = world.robot
+    for Q in escape_motions(q, qd, limits, n, KICK_ESCAPES, np.random.default_rng(0)):
+        if robot.within_limits(Q).all() and world.fast.valid(Q).all():
+            return True
+    return False
+
+
+def escape_motions(q0: Array, v0: Array, limits: Limits, n: int, count: int,
+                   rng: np.random.Generator, dt_s: float = ESCAPE_DT_S) -> Iterator[Array]:
+    """Motions within the limits from q0 (K,) rad at v0 (K,) rad/s, (n, K) each at ``dt_s``
+    (s) steps: the brake (each joint decelerating at its limit), then ``count`` with each
+    joint at a constant acceleration drawn uniformly within its limit
+    (:func:`constant_acceleration_path`)."""
+    v0 = np.asarray(v0, dtype=float)
+    yield constant_acceleration_path(q0, v0, -np.sign(v0) * limits.acceleration, n, dt_s,
+                                     limits)
+    for _ in range(count):
+        acc = rng.uniform(-1, 1, len(q0)) * limits.acceleration
+        yield constant_acceleration_path(q0, v0, acc, n, dt_s, limits)
+
+
+def constant_acceleration_path(q0: Array, v0: Array, acc: Array, n: int, dt: float,
+                               limits: Limits) -> Array:
+    """(n, K) rad: from q0 (K,) rad at velocity v0 (K,) rad/s, each joint at constant
+    acceleration ``acc`` (K,) rad/s² until its velocity limit, every dt (s). Exact for that
+    motion (velocity linear over each step: its positions advance by the step's mean
+    velocity), so it stays within the acceleration limits; integrating with the step's end
+    velocity would move up to twice as far in the first step."""
+    Q = np.empty((n, len(q0)))
+    Q[0], v = q0, np.asarray(v0, dtype=float)
+    for k in range(1, n):
+        v_next = np.clip(v + acc * dt, -limits.velocity, limits.velocity)
+        Q[k] = Q[k - 1] + 0.5 * (v + v_next) * dt
+        v = v_next
+    return Q

@@ -171,7 +171,7 @@ class LiveEpisode:
         """The executive's command for the tick at t (s), after what happened by then."""
         while self.kicks and self.kicks[0].t <= t + 1e-9:
             dq = shrunk_kick(self.world, self.q, self.qd, self.kicks.pop(0).dq,
-                              self.sim.kick_halvings, self.executor.limits.acceleration)
+                             self.sim.kick_halvings, self.executor.limits)
             if dq is not None:
                 self.q = self.q + dq
                 self.kicks_applied.append(dq)
