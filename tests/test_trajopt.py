@@ -26,6 +26,7 @@ from chekhov.paths import resample_path
 from chekhov.planners.base import path_length
 from chekhov.planners.certify import check_path
 from chekhov.planners.query import PlanQuery
+from chekhov.planners.roadmap_trajopt import roadmap_trajopt_config
 from chekhov.robot.goal import Goal
 from chekhov.robot.robot import Robot
 from chekhov.trajopt import _osqp
@@ -381,6 +382,55 @@ def test_a_run_longer_than_its_bound_is_abandoned_unvalidated(pole):
         assert path_length(cut.trajectory) > path_length(seed)
         assert ABANDON_AFTER_STEPS <= cut.iterations < full.iterations
     assert abandoned >= 1
+
+
+KITCHEN_WALL_LINES = (   # Roadmap + TrajOpt's straight-line tries that ran out of steps on
+    # kitchen task cases (2026-12-01): each line's segment crosses a cabinet or fridge wall
+    ((-0.9084213492597263, -1.136131985159298, 0.13475046054513035, 2.112398177989549,
+      -0.10030962971532768, 0.6003450630002979, -3.059),
+     (-0.7157063436684249, -0.8822754981861842, -0.8826470738150631, 2.499818894886649,
+      2.5469583454985805, 1.75450482420233, -2.6358979274055088)),
+    ((0.8998251878244267, 1.039896335629375, -1.4178753640512887, 2.5138311894962984,
+      0.06977841498350232, -0.8863027302452163, 2.572521874671224),
+     (0.18484318350602824, -0.16876370071222352, -2.43901135806251, 2.261914604281615,
+      -0.7628330760522745, -1.57079632679, 2.0630793630177178)),
+    ((1.362416373275003, -1.5109344554193083, -0.343508239743056, 0.6875864097661205,
+      -0.5749502779802524, -0.02356023841683741, 0.44558832629001),
+     (0.14040718998536506, -0.6398420947963108, -2.103145558448781, 1.7420322358769715,
+      0.1402734177651484, -0.2245739477537873, 0.2127061700099104)),
+)
+
+
+def test_a_run_whose_collision_violation_stalls_ends_after_stall_levels(world_of, pole):
+    """Straight lines through the kitchen's walls: the swept distance of a segment that
+    tunnels through a thin wall does not change under small moves, so raising the penalty
+    leaves the collision violation where it was. With ``stall_levels`` 2 each run ends after
+    its second raise ("stalled"), with the status and violation of the run that goes on to
+    ``max_penalty_increases``, in fewer iterations. Lines into the pole that the optimiser
+    pushes out run iterate for iterate as without the rule."""
+    kitchen = world_of("kitchen")
+    off = replace(roadmap_trajopt_config(), stall_levels=0)    # Roadmap + TrajOpt's settings
+    on = replace(off, stall_levels=2)
+    for q0, q1 in KITCHEN_WALL_LINES:
+        seed = straight_line_seed(np.array(q0), np.array(q1), 30)
+        full, cut = (solve_trajopt(build_trajopt(kitchen, seed[0], Goal.configuration(seed[-1]),
+                                                 seed, cfg))
+                     for cfg in (off, on))
+        assert not full.info["stalled"] and full.penalty_increases == 4
+        assert cut.info["stalled"] and cut.penalty_increases == 2
+        assert cut.status == full.status == "infeasible"
+        assert cut.violations["collision_m"] == pytest.approx(full.violations["collision_m"],
+                                                               abs=1e-5)
+        assert cut.iterations < full.iterations
+    pushed_out = 0
+    for q0, q1, seed in _pole_crossing_lines(pole, 6):
+        full, cut = (solve_trajopt(build_trajopt(pole, q0, Goal.configuration(q1), seed, cfg))
+                     for cfg in (off, on))
+        if full.success:
+            pushed_out += 1
+            assert not cut.info["stalled"] and cut.iterations == full.iterations
+            np.testing.assert_array_equal(cut.trajectory, full.trajectory)
+    assert pushed_out >= 3
 
 
 def test_a_fixed_start_closer_than_the_clearance_is_asked_only_its_own(pole):

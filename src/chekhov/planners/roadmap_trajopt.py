@@ -56,8 +56,11 @@ alternating twice, 2026-11-30): task cases, mean plan time kitchen 20.3 → 18.7
 
 def roadmap_trajopt_config() -> TrajOptConfig:
     """TrajOpt's settings in Roadmap + TrajOpt: the defaults, its seed resampled at
-    :data:`SEED_STEP_RAD`, :data:`SEGMENT_TERMS` swept terms per segment."""
-    return TrajOptConfig(max_step_rad=SEED_STEP_RAD, terms_per_segment=SEGMENT_TERMS)
+    :data:`SEED_STEP_RAD`, :data:`SEGMENT_TERMS` swept terms per segment, runs that stall
+    ended after two penalty levels (``TrajOptConfig.stall_levels``: its straight-line tries
+    through a cabinet wall ran to their 40 ms budget while a certified answer waited)."""
+    return TrajOptConfig(max_step_rad=SEED_STEP_RAD, terms_per_segment=SEGMENT_TERMS,
+                         stall_levels=2)
 
 
 @dataclass(frozen=True)

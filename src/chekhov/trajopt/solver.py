@@ -41,6 +41,10 @@ ABANDON_AFTER_STEPS = 2
 from a seed is often the longest (the collision terms push the path off the obstacles it
 hugs), the second shows where the run is heading (see ``RoadmapTrajOptConfig.abandon_ratio``)."""
 
+STALL_TOLERANCE_M = 1e-5
+"""m: a penalty level that lowers the collision violation by less leaves it where it was
+(``TrajOptConfig.stall_levels``)."""
+
 FIRST_STEP_S = 2.5e-3
 """s: expected cost of the first SQP step (OSQP's setup and factorisation, one ADMM solve, one
 evaluation), for not starting a step that cannot finish by the time limit."""
@@ -56,7 +60,8 @@ class _SQPState:
         mu: the penalty coefficient. trust: the trust box's half-width, rad.
         deadline: ``time.perf_counter()`` value, s. step_s: s, expected cost of the next step.
         timing: s per phase (collision, linearise, qp, validate, …).
-        converged / out_of_budget / abandoned: why the current penalty's loop ended.
+        converged / out_of_budget / abandoned: why the current penalty's loop ended;
+        stalled: the penalty loop ended on ``stall_levels``.
         accepted: steps accepted. abandon_above: rad, the length that abandons the run.
     """
 
@@ -76,6 +81,7 @@ class _SQPState:
     accepted: int = 0
     abandon_above: float = math.inf
     abandoned: bool = False
+    stalled: bool = False
 
 
 def solve_trajopt(problem: TrajOptProblem, deadline: float = math.inf, *,
@@ -164,14 +170,23 @@ def _solve_once(problem: TrajOptProblem, deadline: float, abandon_above_rad: flo
 
 def _penalty_loop(problem: TrajOptProblem, s: _SQPState) -> None:
     """The outer loop: optimise at each penalty μ = μ₀, kμ₀, … until the constraints hold,
-    the budget ends or ``max_penalty_increases`` is reached."""
+    the budget ends, ``max_penalty_increases`` is reached or the collision violation stalls
+    (``stall_levels``)."""
     cfg = problem.config
+    flat = 0      # penalty levels in a row (after the first raise) that left it where it was
     for _ in range(cfg.max_penalty_increases + 1):
+        before = problem.constraint_report(s.ev)["collision_m"]
         _optimise_at_penalty(problem, s)
         if s.out_of_budget or s.abandoned or problem.satisfied(s.ev):
             break
         if s.penalty_increases == cfg.max_penalty_increases:
             break
+        if cfg.stall_levels > 0 and s.penalty_increases >= 1:
+            after = problem.constraint_report(s.ev)["collision_m"]
+            flat = flat + 1 if after > 0.0 and after >= before - STALL_TOLERANCE_M else 0
+            if flat >= cfg.stall_levels:
+                s.stalled = True
+                break
         s.mu *= cfg.penalty_increase
         s.penalty_increases += 1
         s.trust = max(s.trust, cfg.initial_trust_rad)
@@ -256,7 +271,8 @@ def _finish(problem: TrajOptProblem, s: _SQPState, t_start: float, cpu_s: float
         violations=problem.constraint_report(s.ev), iterations=s.iterations,
         penalty_increases=s.penalty_increases, timing_s=s.timing, seed=problem.seed,
         info={"cpu_s": cpu_s, "penalty": s.mu, "trust_rad": s.trust,
-              "qp_rebuilds": s.rebuilds, "admm_iterations": s.qp.admm_iterations})
+              "qp_rebuilds": s.rebuilds, "admm_iterations": s.qp.admm_iterations,
+              "stalled": s.stalled})
 
 
 def _validated_status(problem: TrajOptProblem, s: _SQPState, Q: Array
