@@ -433,6 +433,39 @@ def test_a_run_whose_collision_violation_stalls_ends_after_stall_levels(world_of
     assert pushed_out >= 3
 
 
+@pytest.mark.parametrize(("violations", "stops_after"), [
+    ((5e-3, 5e-3, 5e-3, 5e-3, 5e-3), 2),      # flat from the start: after the second raise
+    ((5e-3, 4e-3, 5e-3, 5e-3, 5e-3), 3),      # progress at level 1 does not count as flat
+    ((5e-3, 5e-3, 4e-3, 4e-3, 4e-3), None),   # progress at level 2 starts the count anew
+    ((5e-3, 0.0, 0.0, 0.0, 0.0), None),       # no collision left (others unmet): no stall
+])
+def test_the_penalty_loop_stalls_only_on_levels_in_a_row_that_leave_the_violation(
+        monkeypatch, violations, stops_after):
+    """``stall_levels`` 2, the collision violation at the end of penalty level k scripted
+    (m): the loop stops after the second level in a row (after the first raise) that did not
+    lower it, and otherwise runs to ``max_penalty_increases``."""
+    from chekhov.trajopt import solver
+
+    class Problem:
+        config = replace(TrajOptConfig(), stall_levels=2)
+
+        def constraint_report(self, ev):
+            return {"collision_m": ev}
+
+        def satisfied(self, ev):
+            return False
+
+    def level(problem, s):
+        s.ev = violations[s.penalty_increases]
+
+    monkeypatch.setattr(solver, "_optimise_at_penalty", level)
+    s = solver._SQPState(x=np.zeros(1), ev=violations[0], qp=None, mu=10.0, trust=0.2,
+                         deadline=np.inf, timing={})
+    solver._penalty_loop(Problem(), s)
+    assert s.stalled == (stops_after is not None)
+    assert s.penalty_increases == (4 if stops_after is None else stops_after)
+
+
 def test_a_fixed_start_closer_than_the_clearance_is_asked_only_its_own(pole):
     """A start within ``min_clearance_m`` of something (a pre-grasp start often is, by the
     sphere model): no segment from it is farther from anything than the start itself, so the
