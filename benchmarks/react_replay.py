@@ -20,6 +20,11 @@ status), step_ms_max (the control step's own compute).
 
 from __future__ import annotations
 
+import os
+
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")  # one core: idle BLAS threads would only spin
+
 import argparse
 import json
 import pickle
