@@ -1225,7 +1225,7 @@ def test_the_evaluators_escape_motions_stay_within_the_limits(limits):
     reachable within the limits — mean velocities within the velocity limits, and the first
     step's displacement from the start velocity no more than half the acceleration limit
     × dt² (integrating with the step's end velocity moved twice that)."""
-    from chekhov.execute.evaluate import constant_acceleration_path
+    from chekhov.execute.simulate import constant_acceleration_path
     rng = np.random.default_rng(0)
     dt = 0.01
     for _ in range(20):

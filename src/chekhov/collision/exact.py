@@ -200,7 +200,7 @@ class ExactChecker:
         the requests of a GeometryData of their own, and only the asked pairs' changed ones
         are set (each a pybind call: all 1493 of the kitchen's took 1.8 ms). A pair with a
         large mesh whose hull bound (``hull_bounds.py``) clears its margin is not asked."""
-        gd, gm = self._margin_geometry(), self.geom_model
+        gd, gm = self._margin_data, self.geom_model
         asked = np.arange(len(margins)) if pairs is None else np.asarray(pairs, np.int64)
         changed = asked[self._margins[asked] != margins[asked]]
         if len(changed):
@@ -257,14 +257,10 @@ class ExactChecker:
         self._margins = np.zeros(len(self.geom_model.collisionPairs))
         self._placed = None
 
-    def _margin_geometry(self) -> pin.GeometryData:
-        """The GeometryData of :meth:`pairs_within` and :meth:`pair_distances`."""
-        return self._margin_data
-
     def _place(self, q: Array) -> pin.GeometryData:
         """The margin GeometryData with the geometries placed at q (K,) (kept from the last
         call at the same q)."""
-        gd = self._margin_geometry()
+        gd = self._margin_data
         if self._placed is None or not np.array_equal(self._placed, q):
             self._placed = np.array(q, dtype=float)
             pin.updateGeometryPlacements(self.model, self.data, self.geom_model, gd,

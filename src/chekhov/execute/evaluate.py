@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 
 from chekhov.collision.exact import ExactChecker, coal_shape
 from chekhov.execute.obstacles import MovingObstacle
-from chekhov.execute.simulate import EpisodeRecord, constant_acceleration_path
+from chekhov.execute.simulate import EpisodeRecord, escape_motions
 from chekhov.timing import Limits
 from chekhov.world import World
 
@@ -176,11 +176,9 @@ def _escapable(truth: TrueWorld, record: EpisodeRecord, hit: int, limits: Limits
     q0, v0 = record.q[i0], record.qd[i0]
     t0 = float(record.times[i0])
     ts = np.arange(0.0, t_hit - t0 + ESCAPE_AFTER_S, 0.01)
-    rng = np.random.default_rng(hit)
     lo, hi = truth.robot.lower, truth.robot.upper
-    for _ in range(ESCAPES):
-        acc = rng.uniform(-1, 1, len(q0)) * limits.acceleration
-        Q = constant_acceleration_path(q0, v0, acc, len(ts), 0.01, limits)
+    for Q in escape_motions(q0, v0, limits, len(ts), ESCAPES, np.random.default_rng(hit),
+                            0.01, brake=False):
         if all(not (np.any(q < lo) or np.any(q > hi) or truth.collides(q, t0 + float(t)))
                for q, t in zip(Q[1:], ts[1:], strict=True)):
             return True

@@ -263,14 +263,16 @@ def _can_escape(world: World, q: Array, qd: Array, limits: Limits) -> bool:
 
 
 def escape_motions(q0: Array, v0: Array, limits: Limits, n: int, count: int,
-                   rng: np.random.Generator, dt_s: float = ESCAPE_DT_S) -> Iterator[Array]:
+                   rng: np.random.Generator, dt_s: float = ESCAPE_DT_S, *,
+                   brake: bool = True) -> Iterator[Array]:
     """Motions within the limits from q0 (K,) rad at v0 (K,) rad/s, (n, K) each at ``dt_s``
-    (s) steps: the brake (each joint decelerating at its limit), then ``count`` with each
-    joint at a constant acceleration drawn uniformly within its limit
+    (s) steps: the brake (each joint decelerating at its limit; with ``brake``), then
+    ``count`` with each joint at a constant acceleration drawn uniformly within its limit
     (:func:`constant_acceleration_path`)."""
     v0 = np.asarray(v0, dtype=float)
-    yield constant_acceleration_path(q0, v0, -np.sign(v0) * limits.acceleration, n, dt_s,
-                                     limits)
+    if brake:
+        yield constant_acceleration_path(q0, v0, -np.sign(v0) * limits.acceleration, n,
+                                         dt_s, limits)
     for _ in range(count):
         acc = rng.uniform(-1, 1, len(q0)) * limits.acceleration
         yield constant_acceleration_path(q0, v0, acc, n, dt_s, limits)

@@ -386,8 +386,12 @@ class RoadmapSeeder:
             if g:
                 goals.append(g)
         # the goals to try the last resorts on (none without them)
-        nearer = 0 if not last_resorts else len(Q_goal) if not goals else (
-            goals[0][0][0] if n_routes > 1 else 0)
+        if not last_resorts:
+            nearer = 0
+        elif not goals:
+            nearer = len(Q_goal)
+        else:
+            nearer = goals[0][0][0] if n_routes > 1 else 0
         for gi in range(nearer):
             if time.perf_counter() >= deadline or len(goals) == n_routes:
                 break

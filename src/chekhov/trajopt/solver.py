@@ -175,7 +175,7 @@ def _penalty_loop(problem: TrajOptProblem, s: _SQPState) -> None:
     cfg = problem.config
     flat = 0      # penalty levels in a row (after the first raise) that left it where it was
     for _ in range(cfg.max_penalty_increases + 1):
-        before = problem.constraint_report(s.ev)["collision_m"]
+        before = problem.constraint_report(s.ev)["collision_m"] if cfg.stall_levels else 0.0
         _optimise_at_penalty(problem, s)
         if s.out_of_budget or s.abandoned or problem.satisfied(s.ev):
             break
