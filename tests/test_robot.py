@@ -44,6 +44,42 @@ def test_batched_fk_equals_looped(robot, rng):
     assert np.allclose(batch, np.stack([robot.compute_ee_pose(q) for q in Q]))
 
 
+@settings(max_examples=300, deadline=None)
+@given(st.one_of(st.floats(-20.0, 20.0), st.floats(-2e5, 2e5),
+                 # the quadrants' edges, where the reduction changes k
+                 st.builds(lambda k, e: k * np.pi / 4 + e, st.integers(-2000, 2000),
+                           st.floats(-1e-9, 1e-9)),
+                 st.sampled_from([0.0, -0.0, np.nan, np.inf, -np.inf, 1e300])))
+def test_compiled_sincos_agrees_with_numpy(x):
+    """The forward kinematics' own sine and cosine (a polynomial after reducing by pi/2) are
+    numpy's to within 2 ulp of 1 over the whole range, and NaN where numpy's are."""
+    from chekhov.robot.chain_kinematics import sincos
+
+    s, c = sincos(x)
+    with np.errstate(invalid="ignore"):
+        wants = np.sin(x), np.cos(x)
+    for got, want in zip((s, c), wants, strict=True):
+        if np.isnan(want):
+            assert np.isnan(got)
+        else:
+            assert abs(got - want) <= 2 * np.spacing(1.0), (x, got, want)
+
+
+def test_compiled_fk_matches_pinocchio(robot, rng):
+    """The compiled chain's end-effector poses (what the collision kernels, IK and TrajOpt's
+    terms build on) are pinocchio's, at random configurations and at angles several turns
+    out (a continuous joint's)."""
+    from chekhov.robot.chain_kinematics import ChainKinematics
+
+    kin = ChainKinematics.from_robot(robot)
+    Q = robot.sample_uniform(rng, 200)
+    Q[100:] += 2 * np.pi * rng.integers(-5, 6, size=(100, robot.dof))
+    R, p = kin.ee_poses(Q)
+    T = robot.compute_ee_poses(Q)
+    np.testing.assert_allclose(R, T[:, :3, :3], atol=1e-12)
+    np.testing.assert_allclose(p, T[:, :3, 3], atol=1e-12)
+
+
 def test_frame_jacobian_matches_finite_differences(robot, rng):
     q = robot.sample_uniform(rng, 1)[0]
     J = robot.compute_frame_jacobian(q)
