@@ -1,7 +1,8 @@
 """Arms nobody here developed on: one JSON object per arm and scene.
 
-    python benchmarks/arms.py [--json] [--arms ur5 xarm7 z1 so100 ur10] [--scenes tabletop_pole]
-                              [--queries 30] [--pose-queries 20] [--time-limit 2]
+    python benchmarks/arms.py [--json] [--arms ur5 xarm7 z1 so100 ur10 jaco]
+                              [--scenes tabletop_pole] [--queries 30] [--pose-queries 20]
+                              [--time-limit 2]
 
 Each arm comes from the ``example-robot-data`` package (its URDF, and its SRDF where the package
 has one), mounted at :data:`BASE_XYZ` (on the pole's table, where Baxter's scenes have room for
@@ -63,6 +64,9 @@ ARMS = {
                  tuple(f"joint{i}" for i in range(1, 8)), "link_eef"),
     "z1": Arm("z1_description/urdf/z1.urdf", "z1_description/srdf/z1.srdf",
               tuple(f"joint{i}" for i in range(1, 7)), "gripperStator"),
+    # Kinova Jaco 2: 6 joints, three of them continuous (planned over ±2π, the URDF's limits)
+    "jaco": Arm("kinova_description/robots/kinova.urdf", "kinova_description/srdf/kinova.srdf",
+                tuple(f"j2s6s200_joint_{i}" for i in range(1, 7)), "j2s6s200_end_effector"),
     "so100": Arm("so_arm_description/urdf/so100.urdf", None,
                  ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll"),
                  "gripper"),

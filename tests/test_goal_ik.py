@@ -86,3 +86,39 @@ def test_a_pose_whose_free_solutions_are_rare_gets_more_restarts():
     T_found = robot.compute_ee_pose(found.Q[0])
     assert np.linalg.norm(T_found[:3, 3] - T[:3, 3]) < 1e-3
     assert rotation_angle(T_found[:3, :3], T[:3, :3]) < 1e-2
+
+
+def test_full_turn_joints_take_the_turn_nearest_the_start():
+    """A joint whose limits span a full turn or more (the Jaco's continuous ones, ±2π) has two
+    values for every angle: solutions found from seeds a turn away come back in the turn
+    nearest ``near``, the same pose; the Panda's joints (less than a turn) are left alone."""
+    from chekhov.robot.description import example_robot_data_dir
+
+    share = example_robot_data_dir()
+    kinova = share / "robots/kinova_description"
+    robot = Robot.from_urdf(kinova / "robots/kinova.urdf", srdf=kinova / "srdf/kinova.srdf",
+                            joints=[f"j2s6s200_joint_{i}" for i in range(1, 7)],
+                            ee_frame="j2s6s200_end_effector", package_dirs=[share.parent])
+    resolver = GoalResolver(robot, lambda Q: np.ones(len(Q), dtype=bool))
+    turns = np.flatnonzero(robot.upper - robot.lower >= 2 * np.pi)
+    assert len(turns) == 3
+    rng = np.random.default_rng(4)
+    far_rows = 0
+    for q_goal in robot.sample_uniform(rng, 10):
+        q_goal[turns] = rng.uniform(-np.pi, np.pi, len(turns))   # a turn either way is free
+        shifted = [q_goal + 2 * np.pi * np.sign(rng.normal()) * (np.arange(6) == j)
+                   for j in turns]
+        far_rows += len(shifted)
+        goal = Goal.pose(robot.compute_ee_pose(q_goal))
+        near = q_goal + 0.02
+        found = resolver.resolve(goal, n=4, seeds=np.array(shifted), near=near)
+        assert len(found) >= 1
+        # each full-turn joint within half a turn of near's (another IK branch may differ
+        # by up to that: the wrist's flip), none a whole turn away
+        assert np.all(np.abs(found.Q[:, turns] - near[turns]) <= np.pi + 1e-9)
+        for q in found.Q:
+            T_q = robot.compute_ee_pose(q)
+            assert np.linalg.norm(T_q[:3, 3] - goal.T_world_ee[:3, 3]) <= goal.position_tolerance
+    assert far_rows == 30
+    panda = GoalResolver(Robot.load("panda"), lambda Q: np.ones(len(Q), dtype=bool))
+    assert not panda._full_turn.any()

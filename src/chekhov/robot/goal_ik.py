@@ -32,6 +32,8 @@ from chekhov.robot.robot import Robot
 Array = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
+TURN = 2.0 * math.pi
+
 
 @dataclass(frozen=True)
 class GoalIKConfig:
@@ -90,6 +92,10 @@ class GoalResolver:
         self.robot = robot
         self.valid = valid
         self.config = config if config is not None else GoalIKConfig()
+        revolute = np.zeros(robot.dof, dtype=bool)
+        for j in robot.model.joints[1:]:   # one coordinate a joint (continuous ones: bounded)
+            revolute[j.idx_q] = j.nq == 1 and j.shortname().startswith("JointModelR")
+        self._full_turn = revolute & (robot.upper - robot.lower >= TURN)
         try:
             self.kinematics: ChainKinematics | None = ChainKinematics.from_robot(robot)
         except ChekhovError:
@@ -137,10 +143,33 @@ class GoalResolver:
             return self._none(f"no valid IK solution from {tried} seeds"
                               + (" (time limit reached)" if time.perf_counter() >= deadline
                                  else ""))
+        if near is not None:
+            Q = self._nearest_turns(Q, np.asarray(near, dtype=float))
         Q = distinct_rows(Q, self.config.min_separation, n)
         if near is not None:
             Q = Q[np.argsort(np.linalg.norm(Q - near, axis=1), kind="stable")]
         return GoalConfigurations(Q, "")
+
+    def _nearest_turns(self, Q: Array, near: Array) -> Array:
+        """Q (M, K) rad with each revolute joint whose limits span a full turn or more (a
+        UR arm's ±2π, a Kinova's continuous ones) moved by whole turns to the value nearest
+        ``near``'s (K,) within its limits: the same pose and the same geometry, a shorter
+        move. The IK lands a joint in whichever turn its seed led to: a Jaco's pose goals on
+        the pole's table, 20 queries, 1.6 rad shorter a path (benchmarks/arms.py). A row the
+        checker ``valid`` rejects once moved (rounding) stays as it was."""
+        turns = self._full_turn
+        if not turns.any() or len(Q) == 0:
+            return Q
+        lo, hi = self.robot.lower, self.robot.upper
+        out = Q + TURN * np.round((near - Q) / TURN) * turns
+        out = np.where(out > hi, out - TURN, out)
+        out = np.where(out < lo, out + TURN, out)
+        out = np.where((out < lo) | (out > hi), Q, out)    # limits less than two turns apart
+        moved = np.flatnonzero((out != Q).any(axis=1))
+        if len(moved):
+            refused = moved[~self.valid(out[moved])]
+            out[refused] = Q[refused]
+        return out
 
     def nearest(self, goal: Goal, q_near: Array, *, n: int = 6,
                 deadline: float = math.inf) -> Array:
