@@ -200,6 +200,26 @@ def test_load_or_build_reuses_a_matching_file(tmp_path, world):
     assert not np.array_equal(c.nodes, a.nodes)
 
 
+def test_another_robot_in_a_scene_keeps_its_own_default_roadmap(tmp_path, world, monkeypatch):
+    """The default file is the scene's for its own robot and the scene's and robot's for
+    another, so two arms in one scene do not rebuild over each other's roadmap."""
+    from chekhov.roadmap.io import world_roadmap_path
+
+    monkeypatch.setenv("CHEKHOV_CACHE_DIR", str(tmp_path))
+    from chekhov import Robot, World
+
+    panda = World(world.scene, Robot.load("panda"))
+    own, other = world_roadmap_path(world), world_roadmap_path(panda)
+    assert own == tmp_path / "roadmaps" / f"{world.scene.name}.npz"
+    assert other == tmp_path / "roadmaps" / f"{world.scene.name}@panda.npz"
+    cfg = RoadmapConfig(n_nodes=30, semantic=False, n_wrist_nodes=0, seed=1)
+    a = load_or_build_roadmap(world, cfg)
+    b = load_or_build_roadmap(panda, cfg)
+    assert own.is_file() and other.is_file()
+    assert load_or_build_roadmap(world, cfg).meta.created == a.meta.created   # not rebuilt
+    assert b.meta.robot == "panda" and a.meta.robot == world.robot.name
+
+
 def test_a_robot_with_every_joint_sampled_gets_no_wrist_copies(tmp_path, world):
     """Wrist nodes redraw the distal joints; with none (every joint sampled, as a URDF robot's
     default) they were duplicates of uniform nodes, whose self-loop edges the saved file's

@@ -1,7 +1,8 @@
 """Roadmap files: one versioned ``.npz`` (arrays + JSON metadata), written atomically.
 
 Default location: ``$CHEKHOV_CACHE_DIR/roadmaps/SCENE.npz``; without that variable
-``$XDG_CACHE_HOME/chekhov/roadmaps/SCENE.npz``, else ``~/.cache/chekhov/roadmaps/SCENE.npz``.
+``$XDG_CACHE_HOME/chekhov/roadmaps/SCENE.npz``, else ``~/.cache/chekhov/roadmaps/SCENE.npz``
+(``SCENE@ROBOT.npz`` for a robot other than the scene's own).
 
 Everything read is checked (:mod:`chekhov.roadmap.checks`): a missing, truncated, corrupt or
 malformed file raises :class:`RoadmapError` naming the file and the field.
@@ -60,8 +61,20 @@ def default_roadmap_dir() -> Path:
     return Path(base) / "chekhov" / "roadmaps"
 
 
-def default_roadmap_path(scene_name: str) -> Path:
-    return default_roadmap_dir() / f"{scene_name}.npz"
+def default_roadmap_path(scene_name: str, robot_name: str | None = None) -> Path:
+    """``<scene>.npz`` in :func:`default_roadmap_dir` for the scene's own robot (``robot_name``
+    None), ``<scene>@<robot>.npz`` for another one: arms tried in one scene each keep their
+    roadmap, where they had taken turns overwriting one file (a UR10's took 11 minutes to
+    build again after a Jaco's)."""
+    if robot_name is None:
+        return default_roadmap_dir() / f"{scene_name}.npz"
+    return default_roadmap_dir() / f"{scene_name}@{re.sub(r'[^A-Za-z0-9_.-]', '_', robot_name)}.npz"
+
+
+def world_roadmap_path(world: World) -> Path:
+    """:func:`default_roadmap_path` of ``world``'s scene and robot."""
+    own = world.robot.name == world.scene.robot
+    return default_roadmap_path(world.scene.name, None if own else world.robot.name)
 
 
 # --- writing -------------------------------------------------------------------------------
@@ -221,7 +234,7 @@ def load_or_build_roadmap(world: World, config: RoadmapConfig | None = None,
     from chekhov.roadmap.build import build_roadmap
 
     config = config or RoadmapConfig()
-    path = Path(path) if path is not None else default_roadmap_path(world.scene.name)
+    path = Path(path) if path is not None else world_roadmap_path(world)
     remove_stale_temporaries(path)
     if path.is_file():
         try:
