@@ -400,3 +400,27 @@ def test_more_routes_skip_only_those_that_cannot_beat_the_answer(world, roadmap)
             assert report[0].path is None
         skipped += report[0].detail["routes"] - report[0].detail["routes_shortcut"]
     assert wins >= 1 and skipped >= 1, (wins, skipped)
+
+
+def test_the_improvements_get_a_multiple_of_the_first_answers_time(world, roadmap):
+    """The improvement stages start only within the budget after the first answer: with
+    ``improve_time_s`` a nanosecond none does, unless ``improve_time_scale`` gives them a
+    multiple of the first answer's own time (an arm whose checks are slow); 0 still means
+    none (the executive's replans)."""
+    cases = generate_cases(world, 8, seed=7, family="tasks")
+    improving = {Stage.ROUTES, Stage.SIMPLIFY, Stage.STRAIGHT_LINE, Stage.OPTIMISE}
+
+    def improved(config: RoadmapTrajOptConfig) -> int:
+        planner = RoadmapTrajOpt(world, roadmap, config)
+        n = 0
+        for i in range(len(cases)):
+            r = planner.plan(cases.q_start[i], cases.goal(i), 10.0)
+            assert r.success, r.status
+            n += any(s.stage in improving for s in r.stages)
+        return n
+
+    assert improved(RoadmapTrajOptConfig(improve_time_s=1e-9, improve_time_scale=0.0)) == 0
+    assert improved(RoadmapTrajOptConfig(improve_time_s=0.0, improve_time_scale=1e4)) == 0
+    assert improved(RoadmapTrajOptConfig(improve_time_s=1e-9, improve_time_scale=1e4)) >= 6
+    with pytest.raises(ChekhovError, match="improve_time_scale"):
+        RoadmapTrajOptConfig(improve_time_scale=-1.0)

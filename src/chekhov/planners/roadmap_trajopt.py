@@ -123,6 +123,13 @@ class RoadmapTrajOptConfig:
             over it at their second step (40 task or random cases a scene, seeds 1-2; 39 on
             the Panda), none ended shorter than the answer, each taking up to the whole
             ``improve_time_s``; none of the 132 runs that beat the answer was over it.
+        improve_time_scale: the improvements are given at least this many times what the
+            first answer took (when that is more than ``improve_time_s``): on an arm whose
+            checks are slow the same work takes longer — a UR10 without its SRDF (43k checks
+            a second) spent all of 0.1 s in the partial shortcuts, TrajOpt never ran, and its
+            paths were 50% longer (12 queries: 18.7 rad against 12.4 with 1 s, in about the
+            same time). Baxter's and the Panda's first answers (1-3 ms) leave the budget at
+            ``improve_time_s``.
     """
 
     trajopt: TrajOptConfig = field(default_factory=roadmap_trajopt_config)
@@ -139,13 +146,15 @@ class RoadmapTrajOptConfig:
     straight_line_ratio: float = 1.2
     straight_line_max_blocked: float = 0.2
     improve_time_s: float = 0.1
+    improve_time_scale: float = 4.0
     simplify_rounds: int = 8
     min_length_gain: float = 0.01
     abandon_ratio: float = 1.05
 
     def __post_init__(self) -> None:
         for name, unit in (("straight_line_time_s", " of s"), ("fallback_time_s", " of s"),
-                           ("improve_time_s", " of s"), ("straight_line_ratio", ""),
+                           ("improve_time_s", " of s"), ("improve_time_scale", ""),
+                           ("straight_line_ratio", ""),
                            ("shortcut_clearance_m", " of m"),
                            ("straight_line_max_blocked", ""), ("min_length_gain", "")):
             v = getattr(self, name)
@@ -175,7 +184,8 @@ class RoadmapTrajOpt(PlannerBase):
        every route ("no_path"), ``repair`` grows a bidirectional tree that connects into the
        roadmap (:mod:`chekhov.roadmap.repair`) until the time limit: the query fails only
        when time runs out.
-    2. **Improvements**, ending ``improve_time_s`` after the first answer and never later
+    2. **Improvements**, ending ``improve_time_s`` after the first answer (or
+       ``improve_time_scale`` times the first answer's own time, when longer) and never later
        than :data:`FINISH_RESERVE_S` plus the first answer's checks' time before the
        offers' deadline (what follows them — certifying the waiting candidate, the final check —
        must fit), each offered and kept when certified and shorter: routes to more goal IK
@@ -320,8 +330,11 @@ class RoadmapTrajOpt(PlannerBase):
         stop = run.offer_deadline - FINISH_RESERVE_S - run.timing.get("offers", 0.0) \
             - run.timing.get("route_check", 0.0)
         if run.best is not None:
-            stop = min(stop, time.perf_counter() + cfg.improve_time_s)
-            run.certify_improvements_by(stop + cfg.improve_time_s)
+            now = time.perf_counter()
+            budget = 0.0 if cfg.improve_time_s == 0 else max(   # 0: no improvements
+                cfg.improve_time_s, cfg.improve_time_scale * (now - query.t0))
+            stop = min(stop, now + budget)
+            run.certify_improvements_by(stop + budget)
         # each stage starts only before the stop (a stage looks at it between its steps, but
         # its first step, e.g. the goal's IK solutions, takes ~0.7 ms)
         if (seed is not None and seed_from is Stage.ROADMAP_SEED and cfg.goal_routes > 1
