@@ -203,11 +203,10 @@ def test_load_or_build_reuses_a_matching_file(tmp_path, world):
 def test_another_robot_in_a_scene_keeps_its_own_default_roadmap(tmp_path, world, monkeypatch):
     """The default file is the scene's for its own robot and the scene's and robot's for
     another, so two arms in one scene do not rebuild over each other's roadmap."""
+    from chekhov import Robot, World
     from chekhov.roadmap.io import world_roadmap_path
 
     monkeypatch.setenv("CHEKHOV_CACHE_DIR", str(tmp_path))
-    from chekhov import Robot, World
-
     panda = World(world.scene, Robot.load("panda"))
     own, other = world_roadmap_path(world), world_roadmap_path(panda)
     assert own == tmp_path / "roadmaps" / f"{world.scene.name}.npz"
