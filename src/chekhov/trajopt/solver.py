@@ -174,19 +174,21 @@ def _penalty_loop(problem: TrajOptProblem, s: _SQPState) -> None:
     (``stall_levels``)."""
     cfg = problem.config
     flat = 0      # penalty levels in a row (after the first raise) that left it where it was
+    before = 0.0  # m, the collision violation as the level began (read only with stall_levels)
     for _ in range(cfg.max_penalty_increases + 1):
-        before = problem.constraint_report(s.ev)["collision_m"] if cfg.stall_levels else 0.0
         _optimise_at_penalty(problem, s)
         if s.out_of_budget or s.abandoned or problem.satisfied(s.ev):
             break
         if s.penalty_increases == cfg.max_penalty_increases:
             break
-        if cfg.stall_levels > 0 and s.penalty_increases >= 1:
+        if cfg.stall_levels > 0:   # a level starts where the one before it ended
             after = problem.constraint_report(s.ev)["collision_m"]
-            flat = flat + 1 if after > 0.0 and after >= before - STALL_TOLERANCE_M else 0
-            if flat >= cfg.stall_levels:
-                s.stalled = True
-                break
+            if s.penalty_increases >= 1:
+                flat = flat + 1 if after > 0.0 and after >= before - STALL_TOLERANCE_M else 0
+                if flat >= cfg.stall_levels:
+                    s.stalled = True
+                    break
+            before = after
         s.mu *= cfg.penalty_increase
         s.penalty_increases += 1
         s.trust = max(s.trust, cfg.initial_trust_rad)
