@@ -27,7 +27,7 @@ from chekhov.errors import ChekhovError, IKError
 from chekhov.robot.chain_kinematics import ChainKinematics
 from chekhov.robot.goal import Goal
 from chekhov.robot.ik import solve_ik
-from chekhov.robot.robot import Robot
+from chekhov.robot.robot import Robot, joint_axis
 
 Array = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -93,8 +93,8 @@ class GoalResolver:
         self.valid = valid
         self.config = config if config is not None else GoalIKConfig()
         revolute = np.zeros(robot.dof, dtype=bool)
-        for j in robot.model.joints[1:]:   # one coordinate a joint (continuous ones: bounded)
-            revolute[j.idx_q] = j.nq == 1 and j.shortname().startswith("JointModelR")
+        for j in robot.model.joints[1:]:   # continuous joints are bounded revolute ones here
+            revolute[j.idx_q] = joint_axis(j) is not None
         self._full_turn = revolute & (robot.upper - robot.lower >= TURN)
         try:
             self.kinematics: ChainKinematics | None = ChainKinematics.from_robot(robot)
