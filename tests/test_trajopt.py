@@ -554,6 +554,60 @@ def test_swept_minimum_matches_dense_sampling_along_the_segment(pole, o, ends):
     x = c0 + alpha * (c1 - c0)
     assert signed_distance(env.kind[o], env.R[o], env.p[o], env.size[o], x) == \
         pytest.approx(best, abs=1e-12)
+    # asked only whether the minimum is below ``above``: the same minimum when it is, else
+    # some value not below ``above`` (the search may stop early)
+    for above in (dense - 0.05, dense - 0.005, dense + 0.002, dense + 0.05):
+        got, _ = _swept_min(env.kind[o], env.R[o], env.p[o], env.size[o], *c0, *c1,
+                            SWEPT_ITERATIONS, above)
+        if got < above:
+            assert dense - half_spacing - 1e-12 <= got <= dense + SWEPT_TOLERANCE_M + 1e-12
+        else:       # the true minimum is then at least ``above`` (less the tolerance)
+            assert dense >= above - SWEPT_TOLERANCE_M - 1e-12
+
+
+def _closest_pairs(world, Q, margin, C):
+    """Reference for the segment terms, by brute force: for each segment of Q (T, K), the C
+    smallest swept distances (m) among every (group, obstacle or fixed part) pair within
+    ``margin``, each the minimum over the group's spheres of a full search (no bound)."""
+    pk = world.fast.packed
+    groups, spheres, fixed, env = pk.groups, pk.spheres, pk.fixed, pk.obstacles
+    centres = [world.fast.sphere_centers(q) for q in Q]
+    prims = [(env.kind[o], env.R[o], env.p[o], env.size[o], None) for o in range(len(env.kind))]
+    prims += [(fixed.prims.kind[o], fixed.prims.R[o], fixed.prims.p[o], fixed.prims.size[o], o)
+              for o in range(len(fixed.prims.kind))]
+    out = []
+    for t in range(len(Q) - 1):
+        d = []
+        for g in range(len(groups.radius)):
+            for kind, R, p, size, fixed_o in prims:
+                if fixed_o is not None and not fixed.allowed[g, fixed_o]:
+                    continue
+                best = min(_swept_min(kind, R, p, size, *centres[t][s], *centres[t + 1][s],
+                                      SWEPT_ITERATIONS)[0] - spheres.radius[s]
+                           for s in range(groups.start[g], groups.start[g + 1]))
+                if best < margin:
+                    d.append(best)
+        out.append(np.sort(d)[:C])
+    return out
+
+
+def test_segment_terms_are_the_closest_pairs_of_a_full_search(pole, world_of, rng):
+    """The segment terms skip pairs whose lower bound cannot make the C closest and stop
+    searching a sphere once it cannot: the distances they keep are those of a search of every
+    pair and every sphere to the end (``_closest_pairs``), on paths that pass by the pole and
+    by the shelf's boards."""
+    compared = 0
+    for world in (pole, world_of("shelf_boxes")):
+        td = TrajectoryDistances(world.fast)
+        for _ in range(3):
+            q0, q1 = world.robot.sample_uniform(rng, 2)
+            Q = q0 + np.linspace(0.0, 1.0, 8)[:, None] * 0.3 * (q1 - q0)
+            dist, _, _ = td.segments(Q, 0.06, 4)
+            for t, ref in enumerate(_closest_pairs(world, Q, 0.06, 4)):
+                got = np.sort(dist[t][dist[t] < 1e2])
+                np.testing.assert_allclose(got, ref, atol=1e-12)
+                compared += len(ref)
+    assert compared >= 20, compared
 
 
 def test_a_self_pair_its_table_proves_apart_is_no_term(world_of):
