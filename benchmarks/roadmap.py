@@ -39,7 +39,8 @@ from pathlib import Path
 import numpy as np
 
 from chekhov.planners.base import path_length
-from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt, RoadmapTrajOptConfig
+from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt
+from chekhov.planners.roadmap_trajopt_config import RoadmapTrajOptConfig
 from chekhov.roadmap.build import build_roadmap
 from chekhov.roadmap.config import RoadmapConfig
 from chekhov.roadmap.graph import Roadmap

@@ -16,7 +16,8 @@ from chekhov import (
     TrajOptPlanner,
 )
 from chekhov.bench.cases import generate_cases
-from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt, RoadmapTrajOptConfig
+from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt
+from chekhov.planners.roadmap_trajopt_config import RoadmapTrajOptConfig
 from chekhov.roadmap.build import build_roadmap
 from chekhov.roadmap.config import RoadmapConfig
 

@@ -8,7 +8,8 @@ from chekhov.bench.cases import generate_cases
 from chekhov.collision.exact import densify
 from chekhov.errors import ChekhovError
 from chekhov.planners.base import path_length
-from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt, RoadmapTrajOptConfig
+from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt
+from chekhov.planners.roadmap_trajopt_config import RoadmapTrajOptConfig
 from chekhov.planners.shortcut import partial_shortcut, shortcut_path
 from chekhov.planners.status import Stage
 from chekhov.roadmap.build import build_roadmap

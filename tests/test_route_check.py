@@ -13,7 +13,8 @@ from chekhov.collision.exact import densify
 from chekhov.collision.path_check import CERTIFICATION_ID, cells_free, exact_path_decision
 from chekhov.collision.route_check import route_decision
 from chekhov.paths import resample_path
-from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt, RoadmapTrajOptConfig
+from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt
+from chekhov.planners.roadmap_trajopt_config import RoadmapTrajOptConfig
 from chekhov.planners.status import Stage
 from chekhov.roadmap.build import build_roadmap
 from chekhov.roadmap.config import RoadmapConfig

@@ -26,7 +26,7 @@ from chekhov.paths import resample_path
 from chekhov.planners.base import path_length
 from chekhov.planners.certify import check_path
 from chekhov.planners.query import PlanQuery
-from chekhov.planners.roadmap_trajopt import roadmap_trajopt_config
+from chekhov.planners.roadmap_trajopt_config import roadmap_trajopt_config
 from chekhov.robot.goal import Goal
 from chekhov.robot.robot import Robot
 from chekhov.trajopt import _osqp

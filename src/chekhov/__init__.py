@@ -27,7 +27,8 @@ from chekhov.planners.lazy_prm import LazyPRM, LazyPRMConfig
 from chekhov.planners.ompl_planner import OmplPlanner
 from chekhov.planners.query import PlanQuery
 from chekhov.planners.result import Solution
-from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt, RoadmapTrajOptConfig
+from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt
+from chekhov.planners.roadmap_trajopt_config import RoadmapTrajOptConfig
 from chekhov.planners.status import PlanStatus, Stage, StageReport
 from chekhov.planners.trajopt_planner import SeededTrajOpt, TrajOptPlanner
 from chekhov.roadmap.build import build_roadmap

@@ -110,7 +110,8 @@ class PlannerSpec:
 
         name = canonical_planner_name(self.name)
         if name in ("Roadmap+TrajOpt", "Roadmap+TrajOpt(paper)"):
-            from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt, RoadmapTrajOptConfig
+            from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt
+            from chekhov.planners.roadmap_trajopt_config import RoadmapTrajOptConfig
             from chekhov.trajopt.config import TrajOptConfig
             config = RoadmapTrajOptConfig(straight_line_first=True) if \
                 name == "Roadmap+TrajOpt" else \

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -17,158 +16,19 @@ from chekhov.errors import ChekhovError
 from chekhov.planners.anytime import AnytimeRun
 from chekhov.planners.base import PlannerBase, PlanResult, path_length, resample_path
 from chekhov.planners.query import PlanQuery
+from chekhov.planners.roadmap_trajopt_config import RoadmapTrajOptConfig
 from chekhov.planners.shortcut import partial_shortcut, shortcut_path
 from chekhov.planners.status import PlanStatus, Stage, scalar_items
 from chekhov.planners.trajopt_planner import optimise_report
 from chekhov.roadmap.graph import Roadmap
-from chekhov.roadmap.seeder import RoadmapSeeder, SeederConfig, SeedResult
+from chekhov.roadmap.seeder import RoadmapSeeder, SeedResult
 from chekhov.robot.goal import Goal
-from chekhov.trajopt.config import TrajOptConfig
 from chekhov.trajopt.problem import build_trajopt, straight_line_seed
 from chekhov.trajopt.result import TrajOptResult
 from chekhov.trajopt.solver import solve_trajopt
 from chekhov.world import World
 
 Array = NDArray[np.float64]
-
-
-SEED_STEP_RAD = 0.32
-"""rad: Roadmap + TrajOpt resamples its seed so that adjacent waypoints are at most this far
-apart (twice the paper's 0.16; the answer is still certified at 0.16 rad and 100 substeps,
-and TrajOpt's swept-sphere terms cover the motion between waypoints). Half the waypoints:
-shorter answers, sooner. Measured (60 cases a scene, seed 0, 0.16 against 0.32, one run each,
-2026-11-28): task cases, mean length -1 to -8% in every scene (shelf_boxes 4.42 → 4.07 rad,
-kitchen 5.25 → 4.90), mean plan time -3 to -16% (shelf 50 → 42 ms), mean timed duration
--2 to -12%; random cases, length -0.3 to -2%, mean time -5 to -15%; 0.48 shorter still but
-no faster. On a UR5 (30 tabletop_pole tasks, two runs): length 3.22 → 3.16 rad, mean time
-22 → 24 ms; every answer exactly free at 400 substeps."""
-
-
-SEGMENT_TERMS = 4
-"""Swept-sphere terms kept per segment in Roadmap + TrajOpt's TrajOpt (the defaults': 8). Its
-seeds are collision-free and hug few obstacles at once, so the four closest pairs of a
-segment carry its constraint; a smaller QP solves faster, and every answer is validated
-exactly anyway. Measured (60 cases a scene, seed 0, each variant with its own world,
-alternating twice, 2026-11-30): task cases, mean plan time kitchen 20.3 → 18.7 ms, shelf_boxes
-16.3 → 15.2, panda_cage 13.4 → 12.2, panda_table_shelf 10.4 → 9.7, tabletop_container 10.7 →
-11.1; mean length −1.9% to +0.5%; random cases (kitchen, panda_cage) within 2%; no failure."""
-
-
-def roadmap_trajopt_config() -> TrajOptConfig:
-    """TrajOpt's settings in Roadmap + TrajOpt: the defaults, its seed resampled at
-    :data:`SEED_STEP_RAD`, :data:`SEGMENT_TERMS` swept terms per segment, runs that stall
-    ended after two penalty levels (``TrajOptConfig.stall_levels``: its straight-line tries
-    through a cabinet wall ran to their 40 ms budget while a certified answer waited)."""
-    return TrajOptConfig(max_step_rad=SEED_STEP_RAD, terms_per_segment=SEGMENT_TERMS,
-                         stall_levels=2)
-
-
-@dataclass(frozen=True)
-class RoadmapTrajOptConfig:
-    """Roadmap + TrajOpt's settings (see :class:`RoadmapTrajOpt` for what each does).
-
-    Attributes:
-        trajopt: TrajOpt's settings (:func:`roadmap_trajopt_config`: the seed resampled at
-            :data:`SEED_STEP_RAD`). seeder: the roadmap queries' settings.
-        shortcut: shortcut each roadmap route greedily before TrajOpt.
-        shortcut_clearance_m: m, the clearance the shortcuts (greedy and between any two
-            points) keep: their motions are checked with every link's geometry at least
-            this far from everything (``FastChecker.clearance_world``). A shortcut that
-            grazes the sphere model's surface passes near contact along its length, where the
-            certification's screen (its margins: 0.3-1.5 mm) alarms and coal decides sample
-            by sample — on a robot of meshes (the Panda), 50-110 ms for some answers.
-            Measured on 100 task cases a scene, 0 against 1 mm in one process: offers'
-            certification 11.1 → 5.5 ms a case on average (p95 62 → 20) and plan() mean
-            41 → 35 ms on panda_cage (2 mm: 5.0 ms; on panda_table_shelf 11.0 → 4.1 ms and
-            37 → 32 ms), the same mean path length within 0.7% in shelf_boxes and kitchen,
-            whose Baxter links are primitives that coal decides fast (offers 2-3 ms a case
-            either way).
-        straight_line_first: TrajOpt from a straight line first, for at most
-            ``straight_line_time_s`` s (False: the paper's planner, every query from the
-            roadmap).
-        straight_line_fallback: when the roadmap cannot connect or dynamic obstacles cut every
-            route, TrajOpt from a straight line for at most ``fallback_time_s`` s.
-        goal_routes: routes through the roadmap (one per goal IK solution) shortcut and
-            compared; TrajOpt starts from the shortest.
-        repair: when the roadmap could not connect or dynamic obstacles cut every route,
-            search with a bidirectional tree that connects into the roadmap
-            (:mod:`chekhov.roadmap.repair`) until the time limit, before any straight-line
-            fallback; its path is shortcut and optimised like a roadmap seed.
-        repair_reserve: fraction of the time left (at most 50 ms) kept back from the repair
-            search for shortcutting and the exact check of its path.
-        straight_line_ratio, straight_line_max_blocked: after the first answer, TrajOpt from
-            a straight line is tried only when that answer is longer than
-            ``straight_line_ratio`` times the straight line (in joint space) and at most
-            ``straight_line_max_blocked`` of 64 configurations along the line collide — a
-            per-query decision from what is cheap to know. Measured (shelf and kitchen, 40
-            cases each): the line's TrajOpt won 3 of 4 tries with ≤ 18% blocked and 0 of 24
-            with ≥ 23% (each loss ~40 ms).
-        simplify_rounds: rounds of shortcuts between any two points of the seed (batches of
-            16 random pairs, the best free one spliced in; 0: none) before TrajOpt.
-        improve_time_s: s after the first certified answer by which the improvements (more
-            routes, partial shortcuts, straight-line TrajOpt, TrajOpt from the seed) end:
-            each is given what is left of it (and never more than the time limit). An
-            improvement's certification must end ``improve_time_s`` after that, else it is
-            dropped and the answer so far stands.
-        min_length_gain: TrajOpt from the seed towards a configuration (the goal's, or the
-            seed's own end) is skipped when the seed is at most this fraction longer than the
-            straight line to it: no path there is shorter than the line, so no more could be
-            gained (``info["trajopt_skipped"]`` says so). Measured on 40 panda_table_shelf
-            task cases: 10 such seeds, 10-28 ms of TrajOpt each, none shortened; 12 and 15
-            of 40 other cases skipped in panda_table_shelf and panda_cage.
-        abandon_ratio: TrajOpt from the seed stops ("abandoned") when, after its second
-            accepted step, its trajectory is more than this factor longer than the answer so
-            far (inf: never). Its iterates then pushed the path off the obstacles the seed
-            hugs and it would not come back. Traced step by step with the bound off: 42 runs
-            over it at their second step (40 task or random cases a scene, seeds 1-2; 39 on
-            the Panda), none ended shorter than the answer, each taking up to the whole
-            ``improve_time_s``; none of the 132 runs that beat the answer was over it.
-        improve_time_scale: the improvements are given at least this many times what the
-            first answer took (when that is more than ``improve_time_s``): on an arm whose
-            checks are slow the same work takes longer — a UR10 without its SRDF (43k checks
-            a second) spent all of 0.1 s in the partial shortcuts, TrajOpt never ran, and its
-            paths were 50% longer (12 queries: 18.7 rad against 12.4 with 1 s, in about the
-            same time). Baxter's and the Panda's first answers (1-3 ms) leave the budget at
-            ``improve_time_s``.
-    """
-
-    trajopt: TrajOptConfig = field(default_factory=roadmap_trajopt_config)
-    seeder: SeederConfig = field(default_factory=SeederConfig)
-    shortcut: bool = True
-    shortcut_clearance_m: float = 0.001
-    straight_line_first: bool = True
-    straight_line_time_s: float = 0.04
-    straight_line_fallback: bool = True
-    fallback_time_s: float = 0.25
-    goal_routes: int = 6
-    repair: bool = True
-    repair_reserve: float = 0.2
-    straight_line_ratio: float = 1.2
-    straight_line_max_blocked: float = 0.2
-    improve_time_s: float = 0.1
-    improve_time_scale: float = 4.0
-    simplify_rounds: int = 8
-    min_length_gain: float = 0.01
-    abandon_ratio: float = 1.05
-
-    def __post_init__(self) -> None:
-        for name, unit in (("straight_line_time_s", " of s"), ("fallback_time_s", " of s"),
-                           ("improve_time_s", " of s"), ("improve_time_scale", ""),
-                           ("straight_line_ratio", ""),
-                           ("shortcut_clearance_m", " of m"),
-                           ("straight_line_max_blocked", ""), ("min_length_gain", "")):
-            v = getattr(self, name)
-            if not (isinstance(v, int | float) and v >= 0):
-                raise ChekhovError(f"RoadmapTrajOptConfig.{name}: must be a number{unit} >= 0, "
-                                   f"got {v!r}")
-        r = self.abandon_ratio
-        if not (isinstance(r, int | float) and r >= 1.0):
-            raise ChekhovError(f"RoadmapTrajOptConfig.abandon_ratio: must be a number >= 1 (a "
-                               f"run is abandoned only when longer than the answer so far), "
-                               f"got {r!r}")
-        if not (isinstance(self.goal_routes, int) and self.goal_routes >= 1):
-            raise ChekhovError(f"RoadmapTrajOptConfig.goal_routes: must be an integer >= 1, "
-                               f"got {self.goal_routes!r}")
 
 
 class RoadmapTrajOpt(PlannerBase):
