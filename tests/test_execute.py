@@ -1298,3 +1298,39 @@ def test_a_search_budget_starts_no_unit_that_would_end_past_its_deadline(monkeyp
     with swerve_mod._Budget(None, expected).unit("judge"):
         clock[0] += 0.0005
     assert expected["judge"] == pytest.approx(0.0015)
+
+
+def test_a_trajopt_reply_is_timed_along_its_curve_not_at_rest_at_every_waypoint(world):
+    """A reply with many waypoints (TrajOpt's: 30 along a curve) is timed with toppra's
+    blended corners, not with Ruckig at rest at each waypoint (``reply_timing``): the same
+    certified path moves several times faster, within the limits, and its trajectory passes
+    the exact check at finer steps than the certification's."""
+    from chekhov.execute.worker import (
+        RUCKIG_MAX_WAYPOINTS,
+        PlanRequest,
+        plan_motion,
+        reply_timing,
+    )
+    from chekhov.planners.timed import timed_trajectory
+
+    timing = CONFIG.executor.timing
+    assert timing.method == "ruckig"
+    trajopt = executive_planner("TrajOpt", World.load("tabletop_pole"))
+    q0, goal = start_and_goal(trajopt.world, 0, 1)
+    request = PlanRequest(0.0, 0.0, State(q0, np.zeros_like(q0), np.zeros_like(q0)), goal,
+                          ({},), 2.0, 0)
+    reply = plan_motion(trajopt.world, trajopt, request, timing)
+    assert reply.trajectory is not None, reply.status
+    path = trajopt.plan(q0, goal, 2.0).path
+    assert len(path) > RUCKIG_MAX_WAYPOINTS
+    at_rest = timed_trajectory(trajopt.world, path, timing).trajectory
+    traj = reply.trajectory
+    assert traj.duration < 0.5 * at_rest.duration, (traj.duration, at_rest.duration)
+    assert reply_timing(path, timing).method == "toppra"
+    assert reply_timing(path[[0, len(path) // 2, -1]], timing) is timing
+    limits = joint_limits(world.robot.velocity_limit, timing)
+    ts = np.arange(0.0, traj.duration, 1e-3)
+    Q, V, _ = traj.sample(ts)
+    assert _fd_ok(ts, Q, V, limits, slack=1e-3)
+    assert exact_path_decision(trajopt.world.fast, trajopt.world.exact, traj.positions,
+                               4).valid
