@@ -273,7 +273,7 @@ def _obstacle_candidates(margin, world, cw0, cw1, gw0, gw1, swept, iters, cand, 
     the margin are searched in the order of their bounds, and the search stops at the first
     whose bound is not below the C-th closest found so far (nor is any after it): the C
     closest are those of the full search (compared bit for bit on 214 TrajOpt evaluations of
-    shelf_boxes task cases; segment terms 18.4 → 15.7 µs a segment with ``_swept_min``'s
+    shelf_boxes task cases; segment terms 18.3 → 15.5 µs a segment with ``_swept_min``'s
     ``above``). The culling is in the loop itself, and :func:`_push` is called on the few
     pairs that remain: an inlined call binds each array argument anew (counting a reference
     to it), which, per pair, cost 4 times the culling (measured)."""
