@@ -71,7 +71,9 @@ class ExecutorConfig:
         join_offsets_s: s, where on a new plan's trajectory the join aims, tried in order.
         timing: how plans are timed: Ruckig, at rest at each waypoint and exactly on the
             certified polyline (2 ms for a 3-5 waypoint path, durations within ~10% of
-            toppra's with rounded corners, which takes 10-15 ms and then an exact re-check).
+            toppra's with rounded corners, which takes 10-15 ms and then an exact re-check);
+            a path of more than ``worker.RUCKIG_MAX_WAYPOINTS`` waypoints (TrajOpt's, along
+            a curve: 5 times slower at rest at each) with toppra (``worker.reply_timing``).
     """
 
     control_dt_s: float = 0.01
