@@ -76,7 +76,8 @@ class ExecutorConfig:
             kitchen and panda_cage (2-9 waypoints), toppra's rounded corners gave durations
             10% shorter at the median in the same wall time, its arcs' exact check included
             (1.6-2.6 ms against 1.6-2.6; this docstring said 10-15 ms before the compiled
-            TOPP-RA), but whole episodes came out no faster (``docs/history.md``, session 35).
+            TOPP-RA); whole episodes, 45 paired, took 5% less time at the median with it
+            (``docs/history.md``, session 35) — not yet the default.
     """
 
     control_dt_s: float = 0.01
