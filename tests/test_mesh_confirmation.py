@@ -10,7 +10,7 @@ import pytest
 
 from chekhov import Robot, World
 from chekhov.collision.codes import HULL
-from chekhov.collision.gjk import convex_collide
+from chekhov.collision.gjk import _hull_argmax, convex_collide
 from chekhov.collision.primitives import hull_parts, support_points
 from chekhov.scene.io import scene_from_dict
 
@@ -74,6 +74,19 @@ def test_support_points_keep_the_support_function():
     assert len(keep) < len(pts)
     U = rng.normal(size=(2000, 3))
     assert np.allclose((pts @ U.T).max(axis=0), (keep @ U.T).max(axis=0), atol=1e-12)
+
+
+def test_hull_support_scan_finds_the_first_largest_point():
+    """The hull's support point (four running maxima) is numpy's argmax of V·l: the first of
+    the largest, for any length (not only multiples of four), with tied points, and on a
+    range that does not start at 0."""
+    rng = np.random.default_rng(11)
+    for n in (1, 2, 3, 4, 5, 7, 8, 13, 152):
+        V = rng.integers(-3, 4, size=(n + 3, 3)).astype(float)  # small integers: exact ties
+        for _ in range(200):
+            u = rng.integers(-2, 3, size=3).astype(float)
+            d = V[3:, 0] * u[0] + V[3:, 1] * u[1] + V[3:, 2] * u[2]
+            assert _hull_argmax(V, 3, n + 3, u[0], u[1], u[2]) == 3 + int(np.argmax(d))
 
 
 def test_hull_gjk_agrees_with_coal_on_a_panda_link():
