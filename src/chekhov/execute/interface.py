@@ -77,7 +77,10 @@ class ExecutorConfig:
             10% shorter at the median in the same wall time, its arcs' exact check included
             (1.6-2.6 ms against 1.6-2.6; this docstring said 10-15 ms before the compiled
             TOPP-RA); whole episodes, 45 paired, took 5% less time at the median with it
-            (``docs/history.md``, session 35) — not yet the default.
+            (``docs/history.md``, session 35). Not the default: the full ``chekhov react
+            --episodes 20`` with it (session 36) had 5 collision episodes, 4 of them avoidable,
+            against 2 and 0 in the README's table (``docs/results/
+            react_toppra_every_reply.jsonl``).
     """
 
     control_dt_s: float = 0.01
