@@ -1,6 +1,7 @@
 """Collision checking and IK figures, one JSON object per robot and scene.
 
-    python benchmarks/collision.py [--json] [--scenes ...] [--robot panda] [--n 100000]
+    python benchmarks/collision.py [--json] [--scenes ...] [--robot panda | --arm ur5]
+                                   [--n 100000]
 
 Keys: robot, scene, fast_checks_per_s (batched, one core; best of 3 passes over the
 configurations, fast_checks_per_s_median the median pass), exact_checks_per_s,
@@ -17,7 +18,9 @@ direction is followed in 0.1 rad steps until the exact checker reports a collisi
 bisected until the free end's exact distance (coal, every checked pair) is below a target drawn
 uniformly in 0–20 mm; the free end is a near configuration, the colliding end a near-colliding
 one. ``--robot panda`` places a Franka Panda in each scene where Baxter's left shoulder is
-(at the height of Baxter's base, facing the same way) instead of the scene's robot.
+(at the height of Baxter's base, facing the same way) instead of the scene's robot; ``--arm
+ur5`` (any arm of ``benchmarks/arms.py``, from the example-robot-data package) places that arm
+where ``arms.py`` does, on the pole's table.
 """
 
 from __future__ import annotations
@@ -40,8 +43,13 @@ NEAR_MAX = 0.02  # m: near-contact configurations have an exact clearance in [0,
 NEAR_BANDS = ((0.0, 0.002), (0.002, 0.005), (0.005, NEAR_MAX + 1e-12))  # m: reported apart
 
 
-def make_world(scene_name: str, robot_name: str | None) -> World:
-    """The scene with its own robot, or with ``robot_name`` mounted at Baxter's left shoulder."""
+def make_world(scene_name: str, robot_name: str | None, arm: str | None = None) -> World:
+    """The scene with its own robot, with ``robot_name`` mounted at Baxter's left shoulder, or
+    with ``arm`` (``arms.ARMS``) where ``benchmarks/arms.py`` mounts it."""
+    if arm is not None:
+        from arms import make_world as arm_world  # this folder: run as a script
+
+        return arm_world(arm, scene_name)
     scene = load_scene(scene_name)
     if robot_name is None:
         return World(scene)
@@ -129,10 +137,10 @@ def near_figures(w: World, n: int, seed: int) -> dict[str, float | int]:
     return out
 
 
-def bench_scene(name: str, robot: str | None, n: int, n_exact: int, n_near: int, seed: int
-                ) -> dict[str, float | int | str]:
+def bench_scene(name: str, robot: str | None, n: int, n_exact: int, n_near: int, seed: int,
+                arm: str | None = None) -> dict[str, float | int | str]:
     rng = np.random.default_rng(seed)
-    w = make_world(name, robot)
+    w = make_world(name, robot, arm)
     t = time.perf_counter()
     fast = w.fast
     build_s = time.perf_counter() - t
@@ -184,11 +192,16 @@ def bench_scene(name: str, robot: str | None, n: int, n_exact: int, n_near: int,
 
 
 def main() -> None:
+    from arms import ARMS  # this folder: run as a script
+
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--scenes", nargs="+", default=builtin_scenes())
-    ap.add_argument("--robot", default=None,
-                    help="a built-in robot placed at Baxter's left shoulder (default: the "
-                         "scene's own robot)")
+    who = ap.add_mutually_exclusive_group()
+    who.add_argument("--robot", default=None,
+                     help="a built-in robot placed at Baxter's left shoulder (default: the "
+                          "scene's own robot)")
+    who.add_argument("--arm", default=None, choices=list(ARMS),
+                     help="an example-robot-data arm placed as benchmarks/arms.py places it")
     ap.add_argument("--n", type=int, default=100_000, help="random configurations per scene")
     ap.add_argument("--n-exact", type=int, default=5000, help="for the exact rate / false alarms")
     ap.add_argument("--n-near", type=int, default=1000, help="near-contact configurations")
@@ -196,7 +209,8 @@ def main() -> None:
     ap.add_argument("--json", action="store_true", help="one JSON object per line")
     args = ap.parse_args()
     for name in args.scenes:
-        row = bench_scene(name, args.robot, args.n, args.n_exact, args.n_near, args.seed)
+        row = bench_scene(name, args.robot, args.n, args.n_exact, args.n_near, args.seed,
+                          args.arm)
         if args.json:
             print(json.dumps(row), flush=True)
         else:
