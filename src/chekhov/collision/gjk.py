@@ -28,12 +28,12 @@ from chekhov.collision.codes import BOX, HULL, SPHERE
 
 MAX_ITER = 32
 
-# rows of convex_gap's work array W (15, 3): the simplex (4), v (GJK's direction: the closest
+# rows of convex_gap's work array W (11, 3): the simplex (4), v (GJK's direction: the closest
 # point found), u (v normalised), the support points of A and B, and _closest_on_simplex's
-# E (3), b and G (3). One array read by index: ten small arrays, or row views of one, had
+# edges E (3). One array read by index: ten small arrays, or row views of one, had
 # cost more than the arithmetic (compiled code counts references to each as it is handed on;
 # 2,170 -> 1,850 ns a confirmation of the Panda's self pairs, the same gaps to the bit)
-_S, _V, _U, _XA, _XB, _E, _B, _G = 0, 4, 5, 6, 7, 8, 11, 12  # _S = 0: simplex rows are W[i]
+_S, _V, _U, _XA, _XB, _E = 0, 4, 5, 6, 7, 8  # _S = 0: simplex rows are W[i]
 
 
 @njit(cache=True, nogil=True)
@@ -154,40 +154,41 @@ def _closest_on_simplex(W, n, idx):  # pragma: no cover - compiled
                 continue
             mu0 = -(W[_E, 0] * w0 + W[_E, 1] * w1 + W[_E, 2] * w2) / g
         elif m >= 3:
-            for r in range(3):
-                W[_B, r] = 0.0
-                for c in range(3):
-                    W[_G + r, c] = 0.0
-            for r in range(m - 1):
-                W[_B, r] = -(W[_E + r, 0] * w0 + W[_E + r, 1] * w1 + W[_E + r, 2] * w2)
-                for c in range(m - 1):
-                    W[_G + r, c] = (W[_E + r, 0] * W[_E + c, 0] + W[_E + r, 1] * W[_E + c, 1]
-                                    + W[_E + r, 2] * W[_E + c, 2])
-            g00, g01, g02 = W[_G, 0], W[_G, 1], W[_G, 2]
-            g10, g11, g12 = W[_G + 1, 0], W[_G + 1, 1], W[_G + 1, 2]
-            g20, g21, g22 = W[_G + 2, 0], W[_G + 2, 1], W[_G + 2, 2]
-            b0, b1, b2 = W[_B, 0], W[_B, 1], W[_B, 2]
+            # the edges' Gram matrix g and right-hand side b as scalars (g is symmetric:
+            # e_r·e_c and e_c·e_r are the same products summed in the same order)
+            e00, e01, e02 = W[_E, 0], W[_E, 1], W[_E, 2]
+            e10, e11, e12 = W[_E + 1, 0], W[_E + 1, 1], W[_E + 1, 2]
+            g00 = e00 * e00 + e01 * e01 + e02 * e02
+            g01 = e00 * e10 + e01 * e11 + e02 * e12
+            g11 = e10 * e10 + e11 * e11 + e12 * e12
+            b0 = -(e00 * w0 + e01 * w1 + e02 * w2)
+            b1 = -(e10 * w0 + e11 * w1 + e12 * w2)
             if m == 3:
-                det = g00 * g11 - g01 * g10
+                det = g00 * g11 - g01 * g01
                 if abs(det) < 1e-30:
                     continue
                 mu0 = (b0 * g11 - g01 * b1) / det
-                mu1 = (g00 * b1 - b0 * g10) / det
+                mu1 = (g00 * b1 - b0 * g01) / det
             else:
-                det = (g00 * (g11 * g22 - g12 * g21)
-                       - g01 * (g10 * g22 - g12 * g20)
-                       + g02 * (g10 * g21 - g11 * g20))
+                e20, e21, e22 = W[_E + 2, 0], W[_E + 2, 1], W[_E + 2, 2]
+                g02 = e00 * e20 + e01 * e21 + e02 * e22
+                g12 = e10 * e20 + e11 * e21 + e12 * e22
+                g22 = e20 * e20 + e21 * e21 + e22 * e22
+                b2 = -(e20 * w0 + e21 * w1 + e22 * w2)
+                det = (g00 * (g11 * g22 - g12 * g12)
+                       - g01 * (g01 * g22 - g12 * g02)
+                       + g02 * (g01 * g12 - g11 * g02))
                 if abs(det) < 1e-36:
                     continue
-                mu0 = (b0 * (g11 * g22 - g12 * g21)
+                mu0 = (b0 * (g11 * g22 - g12 * g12)
                        - g01 * (b1 * g22 - g12 * b2)
-                       + g02 * (b1 * g21 - g11 * b2)) / det
+                       + g02 * (b1 * g12 - g11 * b2)) / det
                 mu1 = (g00 * (b1 * g22 - g12 * b2)
-                       - b0 * (g10 * g22 - g12 * g20)
-                       + g02 * (g10 * b2 - b1 * g20)) / det
-                mu2 = (g00 * (g11 * b2 - b1 * g21)
-                       - g01 * (g10 * b2 - b1 * g20)
-                       + b0 * (g10 * g21 - g11 * g20)) / det
+                       - b0 * (g01 * g22 - g12 * g02)
+                       + g02 * (g01 * b2 - b1 * g02)) / det
+                mu2 = (g00 * (g11 * b2 - b1 * g12)
+                       - g01 * (g01 * b2 - b1 * g02)
+                       + b0 * (g01 * g12 - g11 * g02)) / det
         if mu0 < 0.0 or mu1 < 0.0 or mu2 < 0.0 or mu0 + mu1 + mu2 > 1.0:
             continue
         x0, x1, x2 = w0, w1, w2
@@ -251,7 +252,7 @@ def convex_gap(ka, Ra, pa, sa, Va, a0, a1, ca, kb, Rb, pb, sb, Vb, b0, b1, cb, t
     a converged GJK returns about the distance) or when it makes no progress; ≤ ``target`` +
     1e-9 whenever the shapes are not proved more than ``target`` apart (-inf: no direction
     tried)."""
-    W = np.empty((15, 3))  # rows: _S ... _G
+    W = np.empty((11, 3))  # rows: _S ... _E + 2
     idx = np.empty(4, dtype=np.int64)
     for a in range(3):
         W[_V, a] = ca[a] - cb[a]
