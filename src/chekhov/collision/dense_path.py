@@ -211,14 +211,15 @@ confirmation margins) when GJK measures it: a farther target costs more GJK iter
 
 @njit(cache=True, nogil=True, inline="always")
 def _obstacle_gap(g, c, r, target, kind, R, p, size, ck, V, vs, cen, allow, gk, gsize,
-                  pstart, vstart, hv, hcen, Rg, pg, cw):  # pragma: no cover - compiled
+                  pstart, vstart, hv, hcen, hrad, Rg, pg, cw):  # pragma: no cover - compiled
     """A certified lower bound (m, at most ``target``) on the distance from group g's
     covered geometry (world pose Rg, pg; inside the ball of radius r about c) to the
     primitives (kind, R, p, size) whose confirmation shapes are (ck, V[vs[o]:vs[o+1]],
     cen[o]: see ``gjk.convex_collide``; vs empty: the primitives themselves, about p),
     ``allow[o]`` those to count: GJK for each one nearer than r + target to c, the others
-    being at least target away. The geometry: gk, gsize, pstart, vstart, hv, hcen as in
-    ``GroupGeometry``; cw (3,): work space."""
+    being at least target away, and for each part whose ball (radius hrad[k]) is nearer than
+    that. The geometry: gk, gsize, pstart, vstart, hv, hcen, hrad as in ``GroupGeometry``; cw
+    (3,): work space."""
     gap = target
     for o in range(kind.shape[0]):
         if not allow[o] or signed_distance(kind[o], R[o], p[o], size[o], c) >= r + gap:
@@ -228,6 +229,8 @@ def _obstacle_gap(g, c, r, target, kind, R, p, size, ck, V, vs, cen, allow, gk, 
         cb = cen[o] if vs.shape[0] > 0 else p[o]
         for k in range(pstart[g], pstart[g + 1]):
             part_centre(hcen, k, Rg, pg, cw)
+            if signed_distance(kind[o], R[o], p[o], size[o], cw) >= hrad[k] + gap:
+                continue   # the primitive holds the confirmation shape: that far from it too
             gap = min(gap, convex_gap(gk[g], Rg, pg, gsize[g], hv, vstart[k], vstart[k + 1], cw,
                                       ck[o], R[o], p[o], size[o], V, v0, v1, cb, gap))
             if gap <= 0.0:
@@ -272,6 +275,7 @@ def _walk(P, t0, t1, n, m_first, m_last, check_ends, world, work, ww
                                   fixed.centre, fixed.allowed)
     gk, gR, gp, gsize, gpad = geo.kind, geo.R, geo.p, geo.size, geo.pad
     pstart, vstart, hv, hcen = geo.part_start, geo.vert_start, geo.verts, geo.part_centre
+    hrad = geo.part_radius
     no_v, no_vs = np.empty((0, 3)), np.empty(0, dtype=np.int64)
     all_static = np.ones(sk.shape[0], dtype=np.bool_)
     all_dynamic = np.ones(dk.shape[0], dtype=np.bool_)
@@ -338,15 +342,15 @@ def _walk(P, t0, t1, n, m_first, m_last, check_ends, world, work, ww
                 # static obstacles, then dynamic ones, then fixed parts, while none is near
                 d = _obstacle_gap(g, gwc[g], gr[g], gpad[g] + GAP_LOOK * sphere_step[g], sk,
                                   sR, sp, ss, sk, no_v, no_vs, sp, all_static, gk, gsize,
-                                  pstart, vstart, hv, hcen, Rw[0], pw[0], cw[0])
+                                  pstart, vstart, hv, hcen, hrad, Rw[0], pw[0], cw[0])
                 if d > gpad[g] and dk.shape[0] > 0:
                     d = _obstacle_gap(g, gwc[g], gr[g], d, dk, dR, dp, ds, dk, no_v, no_vs,
                                       dp, all_dynamic, gk, gsize, pstart, vstart, hv, hcen,
-                                      Rw[0], pw[0], cw[0])
+                                      hrad, Rw[0], pw[0], cw[0])
                 if d > gpad[g] and gfix[g] >= 0:
                     d = _obstacle_gap(g, gwc[g], gr[g], d, fk, fR, fp, fs, fck, fV, fvs, fcen,
-                                      fallow[g], gk, gsize, pstart, vstart, hv, hcen, Rw[0],
-                                      pw[0], cw[0])
+                                      fallow[g], gk, gsize, pstart, vstart, hv, hcen, hrad,
+                                      Rw[0], pw[0], cw[0])
                 d -= gpad[g]
             if d > 0.0:
                 until[g] = m + clear_for(d, g, gr[g], curve[g, 1], sphere_step[g], dq, parent,
@@ -420,7 +424,8 @@ def with_margin(world, pad, grow):  # pragma: no cover - compiled
         for s in range(grp.start[g], grp.start[g + 1]):
             radius[s] += grow[g]
     geometry = packed.GroupGeometry(geo.kind, geo.R, geo.p, geo.size, np.maximum(geo.pad, pad),
-                                    geo.part_start, geo.vert_start, geo.verts, geo.part_centre)
+                                    geo.part_start, geo.vert_start, geo.verts, geo.part_centre,
+                                    geo.part_radius)
     spheres = packed.Spheres(sph.centre, radius, sph.joint, sph.inner)
     groups = packed.Groups(grp.start, grp.centre, grp.radius + grow, grp.joint, grp.lever,
                            grp.self_pairs)

@@ -328,12 +328,14 @@ def part_centre(hc, k, Rw, pw, out):  # pragma: no cover - compiled
 @njit(cache=True, nogil=True, inline="always")
 def geometry_gap(geo, gj, Rc, pc, a, b, target, Rw, pw, cw):  # pragma: no cover - compiled
     """A certified lower bound (m) on the distance between the geometries groups a and b
-    cover (every pair of their parts, :func:`gjk.convex_gap` towards ``target``), or -inf
-    when either has none; joint poses Rc, pc of the substep."""
+    cover (every pair of their parts whose bounding balls are nearer than the least gap so
+    far, :func:`gjk.convex_gap` towards ``target``), or -inf when either has none; joint
+    poses Rc, pc of the substep."""
     gk = geo.kind
     if gk[a] == NO_GEOMETRY or gk[b] == NO_GEOMETRY:
         return -np.inf
     start, vstart, hv, hc = geo.part_start, geo.vert_start, geo.verts, geo.part_centre
+    hr = geo.part_radius
     place_geometry(Rc, pc, gj, geo.R, geo.p, a, Rw[0], pw[0])
     place_geometry(Rc, pc, gj, geo.R, geo.p, b, Rw[1], pw[1])
     gap = np.inf
@@ -341,6 +343,11 @@ def geometry_gap(geo, gj, Rc, pc, a, b, target, Rw, pw, cw):  # pragma: no cover
         part_centre(hc, i, Rw[0], pw[0], cw[0])
         for j in range(start[b], start[b + 1]):
             part_centre(hc, j, Rw[1], pw[1], cw[1])
+            x = cw[0, 0] - cw[1, 0]
+            y = cw[0, 1] - cw[1, 1]
+            z = cw[0, 2] - cw[1, 2]
+            if x * x + y * y + z * z >= (hr[i] + hr[j] + gap) ** 2:
+                continue   # the parts' balls are gap apart, and so are the parts
             gap = min(gap, convex_gap(gk[a], Rw[0], pw[0], geo.size[a], hv, vstart[i],
                                       vstart[i + 1], cw[0], gk[b], Rw[1], pw[1], geo.size[b],
                                       hv, vstart[j], vstart[j + 1], cw[1], target))

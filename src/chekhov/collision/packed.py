@@ -27,6 +27,7 @@ from chekhov.collision.primitives import (
     PrefixPacker,
     Primitive,
     Primitives,
+    bounding_radius,
     cluster_primitives,
     fixed_points,
     geometry_primitives,
@@ -97,7 +98,7 @@ class GroupGeometry(NamedTuple):
     its placement; size (G, 3); pad (G,) m: the margin a confirmation keeps. Group g's parts
     are part_start[g]:part_start[g+1] (one with no points for a primitive); part k's support
     points verts[vert_start[k]:vert_start[k+1]] (geometry frame), part_centre[k] a point inside
-    it."""
+    it, part_radius[k] (m) the radius of a ball about it that holds the part."""
 
     kind: IntArray
     R: Array
@@ -108,6 +109,7 @@ class GroupGeometry(NamedTuple):
     vert_start: IntArray
     verts: Array
     part_centre: Array
+    part_radius: Array
 
 
 class Clusters(NamedTuple):
@@ -443,6 +445,9 @@ def exact_geometry(robot: Robot, geoms: list[int], sp: SphereModel
     rin = np.zeros(len(sp))
     parts: list[list[Array]] = []
     cm = robot.collision_model
+    # a mesh's hull parts take up to a second to cut (hull_split.py): once per robot
+    cache = robot.caches.setdefault("hull_parts", {})
+    assert isinstance(cache, dict)
     for i, gi in enumerate(geoms):
         go = cm.geometryObjects[gi]
         g = go.geometry
@@ -455,7 +460,8 @@ def exact_geometry(robot: Robot, geoms: list[int], sp: SphereModel
         elif isinstance(g, coal.Sphere):
             kind[i], size[i] = codes.SPHERE, (g.radius, 0.0, 0.0)
         elif hasattr(g, "num_tris"):
-            kind[i], parts[i] = codes.HULL, hull_parts(g)
+            kind[i] = codes.HULL
+            parts[i] = cache[gi] if gi in cache else cache.setdefault(gi, hull_parts(g))
             mine = np.flatnonzero(sp.geometries == gi)
             X = (sp.centers[mine] - p[i]) @ R[i]       # the mesh's frame
             depth = np.max([hull_depth(v, X) for v in parts[i]], axis=0)
@@ -467,17 +473,22 @@ def exact_geometry(robot: Robot, geoms: list[int], sp: SphereModel
         for s in np.flatnonzero(sp.geometries == gi):
             d = signed_distance(kind[i], R[i], p[i], size[i], sp.centers[s])
             rin[s] = max(0.0, -d - 1e-9)
-    return GroupGeometry(kind, R, p, size, pad, *_pack_parts(parts)), rin
+    pstart, vstart, V, centre, radius = _pack_parts(parts)
+    primitive = (kind != codes.HULL) & (kind != codes.NO_GEOMETRY)   # one part, at its origin
+    radius[pstart[:-1][primitive]] = bounding_radius(kind[primitive], size[primitive])
+    return GroupGeometry(kind, R, p, size, pad, pstart, vstart, V, centre, radius), rin
 
 
-def _pack_parts(parts: list[list[Array]]) -> tuple[IntArray, IntArray, Array, Array]:
-    """(part_start (G+1,), vert_start (P+1,), verts (NV, 3), part_centre (P, 3)) of each
-    group's parts (lists of support points, (n, 3) each; n = 0 for a primitive, whose centre
-    is its origin)."""
+def _pack_parts(parts: list[list[Array]]) -> tuple[IntArray, IntArray, Array, Array, Array]:
+    """(part_start (G+1,), vert_start (P+1,), verts (NV, 3), part_centre (P, 3), part_radius
+    (P,)) of each group's parts (lists of support points, (n, 3) each; n = 0 for a primitive,
+    whose centre is its origin and whose radius is left 0)."""
     flat = [pts for group in parts for pts in group]
     pstart = np.cumsum([0] + [len(group) for group in parts]).astype(np.int64)
     vstart = np.cumsum([0] + [len(pts) for pts in flat]).astype(np.int64)
     V = np.vstack([np.zeros((0, 3)), *flat]).astype(float)
     centre = np.array([pts.mean(axis=0) if len(pts) else np.zeros(3) for pts in flat],
                       dtype=float).reshape(-1, 3)
-    return pstart, vstart, V, centre
+    radius = np.array([np.linalg.norm(pts - c, axis=1).max() * (1 + 1e-12) if len(pts) else 0.0
+                       for pts, c in zip(flat, centre, strict=True)], dtype=float)
+    return pstart, vstart, V, centre, radius

@@ -15,6 +15,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull, QhullError
 
 from chekhov.collision.codes import BOX, CYLINDER, HULL, SPHERE
+from chekhov.collision.hull_split import split_part
 from chekhov.errors import RobotError
 from chekhov.robot.spheres import mesh_arrays, mesh_triangles
 from chekhov.scene.model import Shape
@@ -153,7 +154,8 @@ def fixed_points(prims: list[Primitive]
 def hull_parts(geometry: coal.CollisionGeometry) -> list[Array]:
     """Support points (:func:`support_points`) of each connected part of a coal mesh, in the
     mesh's frame (m): the confirmation tests a part's convex hull, which contains it. Parts
-    are the connected components of the triangles' edges; vertices used by no triangle are
+    are the connected components of the triangles' edges, each cut into convex pieces where
+    its hull is a poor fit (``hull_split.split_part``); vertices used by no triangle are
     ignored."""
     verts, tris = mesh_arrays(geometry)
     if len(tris) == 0:
@@ -162,7 +164,8 @@ def hull_parts(geometry: coal.CollisionGeometry) -> list[Array]:
     graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])),
                        shape=(len(verts), len(verts)))
     _, label = connected_components(graph, directed=False)
-    return [support_points(verts[label == c]) for c in np.unique(label[tris[:, 0]])]
+    return [support_points(piece) for c in np.unique(label[tris[:, 0]])
+            for piece in split_part(verts, tris[label[tris[:, 0]] == c])]
 
 
 class Primitives(NamedTuple):

@@ -71,14 +71,22 @@ class Work(NamedTuple):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _confirm(gk, es, pstart, vstart, hv, hc, g, Rw, pw, kb, Rb, pb, sb, Vb, b0, b1, cb, pad,
-             c):  # pragma: no cover - compiled
+def _confirm(gk, es, pstart, vstart, hv, hc, hr, g, Rw, pw, kb, Rb, pb, sb, Vb, b0, b1, cb,
+             bc, br, pad, c):  # pragma: no cover - compiled
     """False only when every part of group g's geometry (kind gk[g], size es[g], parts
-    pstart[g]:pstart[g+1] with support points hv[vstart[k]:vstart[k+1]] and centres hc[k]; world
-    pose Rw, pw) is proved more than ``pad`` (m) from shape B (as in
-    :func:`gjk.convex_collide`, a point cb inside it); c (3,) is work space."""
+    pstart[g]:pstart[g+1] with support points hv[vstart[k]:vstart[k+1]], centres hc[k] and
+    bounding radii hr[k]; world pose Rw, pw) is proved more than ``pad`` (m) from shape B (as
+    in :func:`gjk.convex_collide`, a point cb inside it; when a ``HULL``, inside the ball of
+    radius br about bc). A part whose ball is that far from B (B's exact distance, or its
+    ball's) needs no GJK. c (3,) is work space."""
     for k in range(pstart[g], pstart[g + 1]):
         part_centre(hc, k, Rw, pw, c)
+        if kb == HULL:
+            x, y, z = c[0] - bc[0], c[1] - bc[1], c[2] - bc[2]
+            if x * x + y * y + z * z > (hr[k] + br + pad) ** 2:
+                continue
+        elif signed_distance(kb, Rb, pb, sb, c) > hr[k] + pad:
+            continue
         if convex_collide(gk[g], Rw, pw, es[g], hv, vstart[k], vstart[k + 1], c,
                           kb, Rb, pb, sb, Vb, b0, b1, cb, pad):
             return True
@@ -165,6 +173,7 @@ def collisions(Q, world, work, out, stop):  # pragma: no cover - compiled
     geo = world.geometry
     gk, eR, ep, es, pad = geo.kind, geo.R, geo.p, geo.size, geo.pad
     pstart, vstart, hv, hcen = geo.part_start, geo.vert_start, geo.verts, geo.part_centre
+    hrad, fb = geo.part_radius, fprims.bound
     tpair, tjoint, tlo, tinv, tgap = world.self_tables
 
     # the confirmations' work space, allocated once for the batch (six small allocations
@@ -291,19 +300,21 @@ def collisions(Q, world, work, out, stop):  # pragma: no cover - compiled
                 place_geometry(Rb, pb, gj, eR, ep, o, Rw2, pw2)
                 for k in range(pstart[o], pstart[o + 1]):
                     part_centre(hcen, k, Rw2, pw2, c2)
-                    if _confirm(gk, es, pstart, vstart, hv, hcen, g, Rw, pw, gk[o], Rw2, pw2, es[o],
-                                hv, vstart[k], vstart[k + 1], c2, pad[g] + pad[o], c):
+                    if _confirm(gk, es, pstart, vstart, hv, hcen, hrad, g, Rw, pw, gk[o], Rw2,
+                                pw2, es[o], hv, vstart[k], vstart[k + 1], c2, c2, hrad[k],
+                                pad[g] + pad[o], c):
                         return True
                 continue
             if src == STATIC:
-                hit = _confirm(gk, es, pstart, vstart, hv, hcen, g, Rw, pw, sk[o], sR[o], sp[o],
-                               ss[o], hv, 0, 0, sp[o], pad[g], c)
+                hit = _confirm(gk, es, pstart, vstart, hv, hcen, hrad, g, Rw, pw, sk[o], sR[o],
+                               sp[o], ss[o], hv, 0, 0, sp[o], sp[o], 0.0, pad[g], c)
             elif src == FIXED:  # a fixed part: the hull of its mesh cluster, or its primitive
-                hit = _confirm(gk, es, pstart, vstart, hv, hcen, g, Rw, pw, fck[o], fR[o], fp[o],
-                               fs[o], fV, fvs[o], fvs[o + 1], fcen[o], pad[g], c)
+                hit = _confirm(gk, es, pstart, vstart, hv, hcen, hrad, g, Rw, pw, fck[o], fR[o],
+                               fp[o], fs[o], fV, fvs[o], fvs[o + 1], fcen[o], fp[o], fb[o],
+                               pad[g], c)
             else:
-                hit = _confirm(gk, es, pstart, vstart, hv, hcen, g, Rw, pw, dk[o], dR[o], dp[o],
-                               ds[o], hv, 0, 0, dp[o], pad[g], c)
+                hit = _confirm(gk, es, pstart, vstart, hv, hcen, hrad, g, Rw, pw, dk[o], dR[o],
+                               dp[o], ds[o], hv, 0, 0, dp[o], dp[o], 0.0, pad[g], c)
             if hit:
                 return True
         return False
