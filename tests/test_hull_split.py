@@ -11,9 +11,11 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull
 
-from chekhov.collision.codes import BOX, HULL
+from chekhov import Robot
+from chekhov.collision.codes import BOX, CYLINDER, HULL
 from chekhov.collision.gjk import convex_collide
 from chekhov.collision.hull_split import split_part
+from chekhov.collision.packed import pack_world
 from chekhov.collision.primitives import hull_parts, support_points
 from chekhov.robot.description import example_robot_data_dir
 
@@ -131,3 +133,31 @@ def test_the_ur5_upper_arm_pieces_agree_with_coal_and_prove_more_than_one_hull()
     assert apart >= 300, apart
     # measured: 584 and 536 of 590
     assert proved_pieces >= proved_whole + 0.04 * apart, (proved_pieces, proved_whole, apart)
+
+
+def test_every_part_lies_inside_its_bounding_ball():
+    """The confirmations skip a part whose ball (``GroupGeometry.part_radius`` about its
+    centre) clears the other shape: every support point of a mesh part, and every corner of a
+    box or cylinder group, must lie inside it (UR5: cut parts; Baxter: primitives)."""
+    share = example_robot_data_dir()
+    ur5 = Robot.from_urdf(share / "robots/ur_description/urdf/ur5_joint_limited_robot.urdf",
+                          joints=["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint",
+                                  "wrist_1_joint", "wrist_2_joint", "wrist_3_joint"],
+                          ee_frame="tool0", package_dirs=[share.parent])
+    checked = 0
+    for robot in (ur5, Robot.load("baxter_left")):
+        geo = pack_world(robot, None).geometry
+        for g, kind in enumerate(geo.kind):
+            for k in range(geo.part_start[g], geo.part_start[g + 1]):
+                pts = geo.verts[geo.vert_start[k]:geo.vert_start[k + 1]]
+                if kind == BOX:
+                    pts = np.array(list(itertools.product(*[(-h, h) for h in geo.size[g]])))
+                elif kind == CYLINDER:
+                    r, h = geo.size[g][:2]
+                    a = np.linspace(0, 2 * np.pi, 64)
+                    pts = np.array([(r * np.cos(t), r * np.sin(t), z) for t in a for z in (-h, h)])
+                if len(pts):
+                    d = np.linalg.norm(pts - geo.part_centre[k], axis=1)
+                    assert d.max() <= geo.part_radius[k], (g, k, d.max(), geo.part_radius[k])
+                    checked += 1
+    assert checked >= 20, checked

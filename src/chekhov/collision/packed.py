@@ -475,7 +475,8 @@ def exact_geometry(robot: Robot, geoms: list[int], sp: SphereModel
             rin[s] = max(0.0, -d - 1e-9)
     pstart, vstart, V, centre, radius = _pack_parts(parts)
     primitive = (kind != codes.HULL) & (kind != codes.NO_GEOMETRY)   # one part, at its origin
-    radius[pstart[:-1][primitive]] = bounding_radius(kind[primitive], size[primitive])
+    radius[pstart[:-1][primitive]] = bounding_radius(kind[primitive], size[primitive]) * (
+        1 + 1e-12)   # rounding: as the mesh parts' radii
     return GroupGeometry(kind, R, p, size, pad, pstart, vstart, V, centre, radius), rin
 
 
