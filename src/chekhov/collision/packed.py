@@ -461,7 +461,9 @@ def exact_geometry(robot: Robot, geoms: list[int], sp: SphereModel
             kind[i], size[i] = codes.SPHERE, (g.radius, 0.0, 0.0)
         elif hasattr(g, "num_tris"):
             kind[i] = codes.HULL
-            parts[i] = cache[gi] if gi in cache else cache.setdefault(gi, hull_parts(g))
+            if gi not in cache:
+                cache[gi] = hull_parts(g)
+            parts[i] = cache[gi]
             mine = np.flatnonzero(sp.geometries == gi)
             X = (sp.centers[mine] - p[i]) @ R[i]       # the mesh's frame
             depth = np.max([hull_depth(v, X) for v in parts[i]], axis=0)
