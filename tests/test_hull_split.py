@@ -7,8 +7,6 @@ import itertools
 import coal
 import numpy as np
 import pinocchio as pin
-import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull
 
 from chekhov import Robot
@@ -97,14 +95,8 @@ def test_the_ur5_upper_arm_pieces_agree_with_coal_and_prove_more_than_one_hull()
     path = str(share / "robots/ur_description/meshes/ur5/collision/upperarm.stl")
     geometry = coal.MeshLoader().load(path, np.ones(3))
     pieces = hull_parts(geometry)
+    whole = hull_parts(geometry, max_pieces=1)   # the connected parts, as before the pieces
     verts = np.asarray(geometry.vertices(), dtype=float)
-    # the connected parts, unsplit (as before ``split_part``): their support points
-    tris = np.array([[t[0], t[1], t[2]] for t in (geometry.tri_indices(i)
-                                                  for i in range(geometry.num_tris))])
-    e = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]]])
-    _, label = connected_components(sp.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])),
-                                                  shape=(len(verts),) * 2), directed=False)
-    whole = [support_points(verts[label == c]) for c in np.unique(label[tris[:, 0]])]
     assert len(pieces) > len(whole)
     rng = np.random.default_rng(7)
     half = np.array([0.05, 0.05, 0.01])

@@ -151,12 +151,12 @@ def fixed_points(prims: list[Primitive]
     return kind, vstart, V, centre
 
 
-def hull_parts(geometry: coal.CollisionGeometry) -> list[Array]:
+def hull_parts(geometry: coal.CollisionGeometry, max_pieces: int = 8) -> list[Array]:
     """Support points (:func:`support_points`) of each connected part of a coal mesh, in the
     mesh's frame (m): the confirmation tests a part's convex hull, which contains it. Parts
-    are the connected components of the triangles' edges, each cut into convex pieces where
-    its hull is a poor fit (``hull_split.split_part``); vertices used by no triangle are
-    ignored."""
+    are the connected components of the triangles' edges, each cut into at most
+    ``max_pieces`` convex pieces where its hull is a poor fit (``hull_split.split_part``; 1:
+    the components' own hulls); vertices used by no triangle are ignored."""
     verts, tris = mesh_arrays(geometry)
     if len(tris) == 0:
         raise RobotError("collision mesh has no triangles")
@@ -165,7 +165,8 @@ def hull_parts(geometry: coal.CollisionGeometry) -> list[Array]:
                        shape=(len(verts), len(verts)))
     _, label = connected_components(graph, directed=False)
     return [support_points(piece) for c in np.unique(label[tris[:, 0]])
-            for piece in split_part(verts, tris[label[tris[:, 0]] == c])]
+            for piece in split_part(verts, tris[label[tris[:, 0]] == c],
+                                    max_pieces=max_pieces)]
 
 
 class Primitives(NamedTuple):
