@@ -57,7 +57,7 @@ def db(tmp):
 
 
 def test_registry_names_and_groups():
-    assert len(PLANNER_NAMES) == 13
+    assert len(PLANNER_NAMES) == 14
     assert expand_planner_names(["rrtstar", "fast"])[:2] == ("RRT*", "Roadmap+TrajOpt")
     with pytest.raises(ChekhovError, match="unknown planner"):
         expand_planner_names(["BIT*"])

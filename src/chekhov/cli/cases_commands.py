@@ -8,6 +8,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from pathlib import Path
@@ -33,9 +34,12 @@ def _check_generate_args(args: argparse.Namespace) -> Path:
                             ("--solvability-limit", args.solvability_limit)):
             if value is not None:
                 raise ChekhovError(f"{flag} sets the solvability pass: not with --no-solvability")
-    args.solvability_limit = args.solvability_limit or 1.0
+    from chekhov.bench.solvability import DEFAULT_PLANNER, TIMED_LIMIT_S
+
+    if args.solvability_limit is None:
+        args.solvability_limit = math.inf if not args.planners else TIMED_LIMIT_S
     names: list[str] = []
-    for given in args.planners or ["RRTConnect"]:
+    for given in args.planners or [DEFAULT_PLANNER]:
         try:
             name = canonical_planner_name(given)
         except ChekhovError as e:
@@ -75,7 +79,9 @@ def _cmd_generate(args: argparse.Namespace) -> int:
         if sys.stderr.isatty():
             print(file=sys.stderr)
         cases = rep.cases
-        print(f"solvability pass ({', '.join(rep.planners)}, {rep.time_limit_s:g} s each): "
+        limit = "no time limit" if math.isinf(rep.time_limit_s) else \
+            f"{rep.time_limit_s:g} s each"
+        print(f"solvability pass ({', '.join(rep.planners)}, {limit}): "
               f"{rep.replaced} replacement(s) for {len(rep.replaced_indices)} case(s)"
               + (f", {len(rep.unsolved_indices)} still unsolved" if rep.unsolved_indices else "")
               + f", {rep.time_s:.1f} s")
@@ -129,10 +135,13 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "SCENE-tasks-sSEED-nN.npz for --family tasks)")
     g.add_argument("--solvability-limit", type=checks.positive_seconds, metavar="S",
                    help="time limit per planner and case of the solvability pass, s > 0 "
-                        "(default 1)")
+                        "(default: none for the default planner, whose node budget bounds "
+                        "it and whose answers are the same on every machine; 1 s for "
+                        "--planners)")
     g.add_argument("--planners", nargs="+", metavar="NAME",
                    help="planners of the solvability pass, registry names as for `chekhov "
-                        "bench` (default RRTConnect)")
+                        "bench` (default RRTConnect(seeded): seeded, node-bounded, "
+                        "reproducible)")
     g.add_argument("--no-solvability", action="store_true",
                    help="skip the solvability pass (the cases are then exactly "
                         "generate_cases(n, seed, family))")

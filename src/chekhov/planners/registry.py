@@ -17,6 +17,9 @@ name                      planner
 ``RRT``, ``RRT*``,        OMPL RRT, RRT*, PRM* (RRT* and PRM* optimise path length and run to
 ``PRM*``                  the time limit)
 ``LazyPRM``               :class:`~chekhov.planners.lazy_prm.LazyPRM` (Bohlin & Kavraki)
+``RRTConnect(seeded)``    :class:`~chekhov.planners.rrt_connect.SeededRRTConnect`: RRT-Connect
+                          with seeded samples and a node budget (the same answer on every
+                          machine), what the solvability pass decides with
 ``X+TrajOpt``             :class:`~chekhov.planners.trajopt_planner.SeededTrajOpt`: X's path,
                           resampled to ≤ 0.16 rad, as TrajOpt's seed (the paper's Table II)
 ========================  ==================================================================
@@ -42,7 +45,7 @@ PLANNER_NAMES: tuple[str, ...] = ("Roadmap+TrajOpt", "Roadmap+TrajOpt(paper)", "
                                   "RRTConnect",
                                   "RRTConnect+TrajOpt", "RRT", "RRT+TrajOpt", "RRT*",
                                   "RRT*+TrajOpt", "PRM*", "PRM*+TrajOpt", "LazyPRM",
-                                  "LazyPRM+TrajOpt")
+                                  "LazyPRM+TrajOpt", "RRTConnect(seeded)")
 _OMPL_KIND = {"RRTConnect": "RRTConnect", "RRT": "RRT", "RRT*": "RRTstar", "PRM*": "PRMstar"}
 _ALIASES = {n.lower(): n for n in PLANNER_NAMES}
 _ALIASES.update({"rrtstar": "RRT*", "prmstar": "PRM*", "rrtstar+trajopt": "RRT*+TrajOpt",
@@ -127,6 +130,10 @@ class PlannerSpec:
         return self._sampling(world, name)
 
     def _sampling(self, world: World, name: str) -> Planner:
+        if name == "RRTConnect(seeded)":
+            from chekhov.planners.rrt_connect import SeededRRTConnect, SeededRRTConnectConfig
+            return SeededRRTConnect(world, SeededRRTConnectConfig(resolution=self.resolution,
+                                                                  seed=self.seed))
         if name == "LazyPRM":
             from chekhov.planners.lazy_prm import LazyPRM, LazyPRMConfig
             return LazyPRM(world, LazyPRMConfig(resolution=self.resolution), seed=self.seed)

@@ -2,9 +2,10 @@
 
 When dynamic obstacles cut every stored route, or the start or goal cannot be joined to the
 roadmap, the query is not given up. Two trees grow in the current world — one from the start,
-one from every goal configuration — by RRT-Connect (Kuffner & LaValle 2000: extend one tree
-towards a uniform sample, then pull the other straight towards the new node, swap; steps of at
-most ``range_fraction`` of the joint space's diagonal, OMPL's default range). Every new node
+one from every goal configuration — by RRT-Connect (:mod:`chekhov.roadmap.trees`; Kuffner &
+LaValle 2000: extend one tree towards a uniform sample, then pull the other straight towards
+the new node, swap; steps of at most ``range_fraction`` of the joint space's diagonal, OMPL's
+default range). Every new node
 of an extend step also tries a straight motion to its nearest roadmap nodes that are still
 valid; once both trees touch the roadmap, the roadmap is searched between the touched nodes
 (cached shortest path, stored k shortest, then lazy A* on what the obstacles left). Whichever
@@ -28,6 +29,7 @@ from numpy.typing import NDArray
 from chekhov.roadmap.config import RepairConfig
 from chekhov.roadmap.graph import Roadmap
 from chekhov.roadmap.nearest import NearestNodes
+from chekhov.roadmap.trees import BiTrees
 from chekhov.roadmap.validity import RoadmapValidity
 from chekhov.world import World
 
@@ -58,38 +60,6 @@ class RepairResult:
     @property
     def success(self) -> bool:
         return self.path is not None
-
-
-class _Tree:
-    """A tree of configurations (rows of X) with parent links; roots have parent -1."""
-
-    def __init__(self, roots: Array) -> None:
-        roots = np.atleast_2d(np.asarray(roots, dtype=float))
-        self.X = np.empty((max(64, 2 * len(roots)), roots.shape[1]))
-        self.parent = np.full(len(self.X), -1, dtype=np.int64)
-        self.n = 0
-        for q in roots:
-            self.add(q, -1)
-
-    def add(self, q: Array, parent: int) -> int:
-        if self.n == len(self.X):
-            self.X = np.vstack([self.X, np.empty_like(self.X)])
-            self.parent = np.concatenate([self.parent, np.full(len(self.parent), -1)])
-        self.X[self.n], self.parent[self.n] = q, parent
-        self.n += 1
-        return self.n - 1
-
-    def nearest(self, q: Array) -> int:
-        d = self.X[: self.n] - q
-        return int(np.argmin(np.einsum("ij,ij->i", d, d)))
-
-    def branch(self, i: int) -> Array:
-        """Configurations from the root down to node i, (m, K)."""
-        chain = []
-        while i >= 0:
-            chain.append(self.X[i])
-            i = int(self.parent[i])
-        return np.array(chain[::-1])
 
 
 class TreeRepair:
@@ -147,7 +117,8 @@ class _Search:
 
     def __init__(self, repair: TreeRepair, q_start: Array, Q_goal: Array) -> None:
         self.r = repair
-        self.trees = (_Tree(q_start), _Tree(Q_goal))
+        self.bi = BiTrees(q_start, Q_goal, repair.free, repair.step)
+        self.trees = self.bi.trees
         self.attached: tuple[dict[int, int], dict[int, int]] = ({}, {})
         self.tried: set[tuple[int, int]] = set()
         self.rng = np.random.default_rng(repair.config.seed)
@@ -164,48 +135,20 @@ class _Search:
         while time.perf_counter() < deadline:
             if self.trees[0].n + self.trees[1].n >= cfg.max_nodes:
                 return None, "exhausted"
-            i_new = self._extend(self.trees[a], robot.sample_uniform(self.rng, 1)[0])
+            i_new = self.bi.extend(a, robot.sample_uniform(self.rng, 1)[0])
             if i_new is not None:
                 extended += 1
                 path = (self._attach(a, i_new, deadline)
                         if extended % cfg.attach_every == 0 else None)
                 if path is None:
-                    j = self._connect(self.trees[1 - a], self.trees[a].X[i_new])
+                    j = self.bi.connect(1 - a, self.trees[a].X[i_new])
                     if j is not None:
                         self.via = "trees"
-                        path = self._join(a, i_new, j)
+                        path = self.bi.join(a, i_new, j)
                 if path is not None:
                     return path, "solved"
             a = 1 - a
         return None, "timeout"
-
-    def _toward(self, q_from: Array, q_to: Array) -> Array:
-        d = q_to - q_from
-        n = float(np.linalg.norm(d))
-        return q_to if n <= self.r.step else q_from + d * (self.r.step / n)
-
-    def _extend(self, tree: _Tree, q: Array) -> int | None:
-        i = tree.nearest(q)
-        q_new = self._toward(tree.X[i], q)
-        if not self.r.free(tree.X[i], q_new):
-            return None
-        return tree.add(q_new, i)
-
-    def _connect(self, tree: _Tree, q: Array) -> int | None:
-        """Pull ``tree`` straight towards q in steps; the node at q when it gets there."""
-        i = tree.nearest(q)
-        while True:
-            q_new = self._toward(tree.X[i], q)
-            if not self.r.free(tree.X[i], q_new):
-                return None
-            i = tree.add(q_new, i)
-            if np.array_equal(q_new, q):
-                return i
-
-    def _join(self, a: int, i_a: int, i_b: int) -> Array:
-        """The path through tree a's node i_a and tree (1 - a)'s node i_b (same place)."""
-        ends = {a: self.trees[a].branch(i_a), 1 - a: self.trees[1 - a].branch(i_b)}
-        return np.vstack([ends[0], ends[1][::-1][1:]])
 
     def _attach(self, side: int, i: int, deadline: float) -> Array | None:
         """Record tree ``side``'s node i's roadmap attachments; a path when one of them
