@@ -15,12 +15,12 @@ from chekhov.bench.cases import generate_cases
 from chekhov.collision.distance_terms import (
     SWEPT_ITERATIONS,
     SWEPT_TOLERANCE_M,
-    TrajectoryDistances,
     _swept_min,
 )
 from chekhov.collision.exact import ExactChecker, densify
 from chekhov.collision.kernels import signed_distance
 from chekhov.collision.path_check import CERTIFY_MAX_SEGMENT_RAD, path_digest
+from chekhov.collision.trajectory_distances import TrajectoryDistances
 from chekhov.errors import ChekhovError
 from chekhov.paths import resample_path
 from chekhov.planners.base import path_length

@@ -20,7 +20,6 @@ from numpy.typing import NDArray
 
 from chekhov.collision import dense_path, kernels, validity
 from chekhov.collision.codes import NONE
-from chekhov.collision.distance_terms import TrajectoryDistances
 from chekhov.collision.motion_memo import MotionMemo
 from chekhov.collision.packed import (
     GridCache,
@@ -36,6 +35,7 @@ from chekhov.collision.primitives import (
     pack_primitives,
     shape_primitive,
 )
+from chekhov.collision.trajectory_distances import TrajectoryDistances
 from chekhov.errors import RobotError
 from chekhov.robot.chain_kinematics import chain_fk
 from chekhov.robot.robot import Robot

@@ -17,8 +17,8 @@ from contextlib import contextmanager
 import numpy as np
 from numpy.typing import NDArray
 
-from chekhov.collision.distance_terms import TrajectoryDistances
 from chekhov.collision.packed import PackedWorld
+from chekhov.collision.trajectory_distances import TrajectoryDistances
 from chekhov.execute.evade import Evader, Samples
 from chekhov.execute.motion import (
     Motion,

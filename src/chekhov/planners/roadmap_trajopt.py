@@ -10,8 +10,8 @@ import time
 import numpy as np
 from numpy.typing import NDArray
 
-from chekhov.collision.distance_terms import TrajectoryDistances
 from chekhov.collision.route_check import PassedRuns, route_decision
+from chekhov.collision.trajectory_distances import TrajectoryDistances
 from chekhov.errors import ChekhovError
 from chekhov.planners.anytime import AnytimeRun
 from chekhov.planners.base import PlannerBase, PlanResult, path_length, resample_path

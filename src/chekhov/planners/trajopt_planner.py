@@ -9,7 +9,7 @@ import time
 import numpy as np
 from numpy.typing import NDArray
 
-from chekhov.collision.distance_terms import TrajectoryDistances
+from chekhov.collision.trajectory_distances import TrajectoryDistances
 from chekhov.errors import ChekhovError, IKError
 from chekhov.planners.base import Planner, PlannerBase, PlanResult
 from chekhov.planners.query import PlanQuery

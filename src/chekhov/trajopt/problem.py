@@ -16,7 +16,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from chekhov.collision.distance_terms import TrajectoryDistances
+from chekhov.collision.trajectory_distances import TrajectoryDistances
 from chekhov.errors import ChekhovError, IKError, RobotError
 from chekhov.paths import resample_path
 from chekhov.robot.goal import Goal
