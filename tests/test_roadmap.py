@@ -517,7 +517,7 @@ def test_goal_configurations_are_kept_until_the_obstacles_change(world, seeder, 
     real = seeder.goal_ik.resolve
     monkeypatch.setattr(seeder.goal_ik, "resolve",
                         lambda *a, **k: asked.append(1) or real(*a, **k))
-    seeder._goal_sets.clear()
+    seeder.goals.memo.clear()
     q0, q1 = _free_configurations(world, 2, seed=21)
     T = world.robot.compute_ee_pose(q1)
     Q, why = seeder.goal_configurations(T, near=q0)
