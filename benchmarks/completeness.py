@@ -16,11 +16,14 @@ Families (deterministic per --seed):
 * ``empty_roadmap``: the roadmap built in the scene emptied of its objects, and every object
   added as a dynamic obstacle (one roadmap reused while the world changes).
 
-Each case is given to OMPL RRTConnect and to Roadmap + TrajOpt with the same world, the same
+Each case is given to OMPL RRTConnect, to RRTConnect(seeded) (ours: seeded, node-bounded, a
+found path's edges certified lazily) and to Roadmap + TrajOpt with the same world, the same
 --time-limit (s) and the same certification. Keys: scene, family, cases, time_limit_s,
 rrtconnect_solved, roadmap_trajopt_solved, rrtconnect_only (solved by RRTConnect and not by
-Roadmap + TrajOpt: the invariant says 0), roadmap_trajopt_only, neither, repaired (answers
-whose seed came from the tree repair), rrtconnect_median_ms / _p95_ms and
+Roadmap + TrajOpt: the invariant says 0), roadmap_trajopt_only, neither (of those two),
+repaired (answers whose seed came from the tree repair), rrtconnect_seeded_solved,
+rrtconnect_seeded_only (solved by RRTConnect(seeded) and not by Roadmap + TrajOpt: 0 too),
+rrtconnect_median_ms / _p95_ms, rrtconnect_seeded_median_ms / _p95_ms and
 roadmap_trajopt_median_ms / _p95_ms (wall, solved cases), roadmap_trajopt_first_median_ms /
 _p95_ms (its first certified answer), returned_collisions (per planner: answers the exact
 checker rejects at 400 substeps per segment — a check four times denser than the
@@ -149,6 +152,7 @@ def run_family(scene: str, family: str, n: int, time_limit: float, seed: int, ca
         cases.append((q0, goal, {**fixed, **extra}))
     world.set_obstacles({})
     planners = {"rrtconnect": make_planner("RRTConnect", world, seed=seed),
+                "rrtconnect_seeded": make_planner("RRTConnect(seeded)", world, seed=seed),
                 "roadmap_trajopt": make_planner("Roadmap+TrajOpt", world, roadmap)}
     solved = {k: np.zeros(n, dtype=bool) for k in planners}
     times: dict[str, list[float]] = {k: [] for k in planners}
@@ -174,11 +178,14 @@ def run_family(scene: str, family: str, n: int, time_limit: float, seed: int, ca
                 statuses[str(r.status)] = statuses.get(str(r.status), 0) + 1
         world.set_obstacles({})
     a, b = solved["rrtconnect"], solved["roadmap_trajopt"]
+    c = solved["rrtconnect_seeded"]
     out: dict[str, object] = {
         "scene": scene, "family": family, "cases": n, "time_limit_s": time_limit,
         "rrtconnect_solved": int(a.sum()), "roadmap_trajopt_solved": int(b.sum()),
         "rrtconnect_only": int((a & ~b).sum()), "roadmap_trajopt_only": int((b & ~a).sum()),
-        "neither": int((~a & ~b).sum()), "repaired": repaired}
+        "neither": int((~a & ~b).sum()), "repaired": repaired,
+        "rrtconnect_seeded_solved": int(c.sum()),
+        "rrtconnect_seeded_only": int((c & ~b).sum())}
     for name, t in times.items():
         out[f"{name}_median_ms"] = round(float(np.median(t)), 2) if t else None
         out[f"{name}_p95_ms"] = round(float(np.percentile(t, 95)), 2) if t else None
