@@ -16,19 +16,18 @@ Families (deterministic per --seed):
 * ``empty_roadmap``: the roadmap built in the scene emptied of its objects, and every object
   added as a dynamic obstacle (one roadmap reused while the world changes).
 
-Each case is given to OMPL RRTConnect, to RRTConnect(seeded) (ours: seeded, node-bounded, a
-found path's edges certified lazily) and to Roadmap + TrajOpt with the same world, the same
---time-limit (s) and the same certification. Keys: scene, family, cases, time_limit_s,
+Each case is given to OMPL RRTConnect, to RRTConnect(deterministic) (ours: seeded,
+node-bounded, a found path's edges certified lazily) and to Roadmap + TrajOpt with the same world,
+the same --time-limit (s) and the same certification. Keys: scene, family, cases, time_limit_s,
 rrtconnect_solved, roadmap_trajopt_solved, rrtconnect_only (solved by RRTConnect and not by
 Roadmap + TrajOpt: the invariant says 0), roadmap_trajopt_only, neither (of those two),
-repaired (answers whose seed came from the tree repair), rrtconnect_seeded_solved,
-rrtconnect_seeded_only (solved by RRTConnect(seeded) and not by Roadmap + TrajOpt: 0 too),
-rrtconnect_median_ms / _p95_ms, rrtconnect_seeded_median_ms / _p95_ms and
-roadmap_trajopt_median_ms / _p95_ms (wall, solved cases), roadmap_trajopt_first_median_ms /
+repaired (answers whose seed came from the tree repair), rrtconnect_deterministic_solved,
+rrtconnect_deterministic_only (solved by RRTConnect(deterministic) and not by Roadmap +
+TrajOpt: 0 too), rrtconnect_median_ms / _p95_ms, rrtconnect_deterministic_median_ms / _p95_ms
+and roadmap_trajopt_median_ms / _p95_ms (wall, solved cases), roadmap_trajopt_first_median_ms /
 _p95_ms (its first certified answer), returned_collisions (per planner: answers the exact
 checker rejects at 400 substeps per segment — a check four times denser than the
-certification's; must be 0), statuses (Roadmap + TrajOpt's failures by status).
-"""
+certification's; must be 0), statuses (Roadmap + TrajOpt's failures by status)."""
 
 from __future__ import annotations
 
@@ -152,7 +151,8 @@ def run_family(scene: str, family: str, n: int, time_limit: float, seed: int, ca
         cases.append((q0, goal, {**fixed, **extra}))
     world.set_obstacles({})
     planners = {"rrtconnect": make_planner("RRTConnect", world, seed=seed),
-                "rrtconnect_seeded": make_planner("RRTConnect(seeded)", world, seed=seed),
+                "rrtconnect_deterministic": make_planner("RRTConnect(deterministic)", world,
+                                                         seed=seed),
                 "roadmap_trajopt": make_planner("Roadmap+TrajOpt", world, roadmap)}
     solved = {k: np.zeros(n, dtype=bool) for k in planners}
     times: dict[str, list[float]] = {k: [] for k in planners}
@@ -178,14 +178,14 @@ def run_family(scene: str, family: str, n: int, time_limit: float, seed: int, ca
                 statuses[str(r.status)] = statuses.get(str(r.status), 0) + 1
         world.set_obstacles({})
     a, b = solved["rrtconnect"], solved["roadmap_trajopt"]
-    c = solved["rrtconnect_seeded"]
+    c = solved["rrtconnect_deterministic"]
     out: dict[str, object] = {
         "scene": scene, "family": family, "cases": n, "time_limit_s": time_limit,
         "rrtconnect_solved": int(a.sum()), "roadmap_trajopt_solved": int(b.sum()),
         "rrtconnect_only": int((a & ~b).sum()), "roadmap_trajopt_only": int((b & ~a).sum()),
         "neither": int((~a & ~b).sum()), "repaired": repaired,
-        "rrtconnect_seeded_solved": int(c.sum()),
-        "rrtconnect_seeded_only": int((c & ~b).sum())}
+        "rrtconnect_deterministic_solved": int(c.sum()),
+        "rrtconnect_deterministic_only": int((c & ~b).sum())}
     for name, t in times.items():
         out[f"{name}_median_ms"] = round(float(np.median(t)), 2) if t else None
         out[f"{name}_p95_ms"] = round(float(np.percentile(t, 95)), 2) if t else None

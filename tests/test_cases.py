@@ -102,7 +102,7 @@ def test_solvability_pass_replaces_unsolved_cases_deterministically(world, cases
 
 def test_solvability_pass_with_the_default_planner(world, cases):
     rep = solvability_pass(world, cases.head(2))
-    assert rep.planners == ("RRTConnect(seeded)",) and len(rep.cases) == 2
+    assert rep.planners == ("RRTConnect(deterministic)",) and len(rep.cases) == 2
 
 
 def test_cached_cases_generate_once(world, tmp_path):

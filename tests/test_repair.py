@@ -83,7 +83,7 @@ def test_roadmap_trajopt_solves_whatever_rrtconnect_solves(scene, family, tmp_pa
     path collides at 400 substeps. Measured (benchmarks/completeness.py, 5 cases, 1 s): all
     solved by all three."""
     r = completeness.run_family(scene, family, 5, 1.0, 0, tmp_path, SMALL)
-    assert r["rrtconnect_only"] == 0 and r["rrtconnect_seeded_only"] == 0, r
+    assert r["rrtconnect_only"] == 0 and r["rrtconnect_deterministic_only"] == 0, r
     assert r["roadmap_trajopt_solved"] >= 4, r
-    assert r["returned_collisions"] == {"rrtconnect": 0, "rrtconnect_seeded": 0,
+    assert r["returned_collisions"] == {"rrtconnect": 0, "rrtconnect_deterministic": 0,
                                         "roadmap_trajopt": 0}, r

@@ -8,7 +8,7 @@ import pytest
 from chekhov.bench.solvability import solvability_pass
 from chekhov.cases import generate_cases
 from chekhov.errors import ChekhovError
-from chekhov.planners.rrt_connect import SeededRRTConnect, SeededRRTConnectConfig
+from chekhov.planners.rrt_connect import DeterministicRRTConnect, DeterministicRRTConnectConfig
 from chekhov.roadmap.trees import Tree, rrt_connect
 from chekhov.robot.goal import Goal
 
@@ -64,8 +64,8 @@ def test_prune_removes_the_subtree():
 @pytest.mark.parametrize("field,value", [("max_nodes", 0), ("n_ik", 1.5),
                                          ("range_fraction", 0.0), ("resolution", -0.01)])
 def test_config_errors_name_the_field(field, value):
-    with pytest.raises(ChekhovError, match=f"SeededRRTConnectConfig.{field}"):
-        SeededRRTConnectConfig(**{field: value})
+    with pytest.raises(ChekhovError, match=f"DeterministicRRTConnectConfig.{field}"):
+        DeterministicRRTConnectConfig(**{field: value})
 
 
 @pytest.fixture(scope="module")
@@ -77,7 +77,7 @@ def test_same_query_same_answer_and_certified(world):
     """Two planners, the same query: identical paths; each checked here by coal at 400
     substeps per segment and the joint limits."""
     cases = generate_cases(world, 4, seed=3)
-    a, b = SeededRRTConnect(world), SeededRRTConnect(world)
+    a, b = DeterministicRRTConnect(world), DeterministicRRTConnect(world)
     solved = 0
     for i in range(len(cases)):
         goal = Goal.pose(cases.T_world_ee_goal[i])
@@ -97,5 +97,5 @@ def test_the_solvability_pass_is_reproducible(world):
     cases = generate_cases(world, 6, seed=8)
     one = solvability_pass(world, cases)
     two = solvability_pass(world, cases)
-    assert one.planners == ("RRTConnect(seeded)",) and one.time_limit_s == float("inf")
+    assert one.planners == ("RRTConnect(deterministic)",) and one.time_limit_s == float("inf")
     assert one.cases.same_as(two.cases) and one.replaced_indices == two.replaced_indices

@@ -42,6 +42,7 @@ def planner_settings(spec: PlannerSpec, planner: Planner, roadmap: Roadmap | Non
     from chekhov.planners.lazy_prm import LazyPRM
     from chekhov.planners.ompl_planner import OmplPlanner
     from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt
+    from chekhov.planners.rrt_connect import DeterministicRRTConnect
     from chekhov.planners.trajopt_planner import SeededTrajOpt, TrajOptPlanner
 
     d: dict[str, Any] = {"name": spec.name, "optimal_runs_to_limit": is_optimal(spec.name)}
@@ -68,7 +69,7 @@ def planner_settings(spec: PlannerSpec, planner: Planner, roadmap: Roadmap | Non
             "improve_time_s", "simplify_rounds")})
         d["seeder"] = asdict(p.seeder.config) if hasattr(p.seeder, "config") else {}
         d["trajopt"] = _trajopt_settings(c.trajopt)
-    elif isinstance(p, OmplPlanner | LazyPRM):
+    elif isinstance(p, OmplPlanner | LazyPRM | DeterministicRRTConnect):
         d.update(_sampling_settings(p))
     return json.loads(json.dumps(d, default=str))
 
@@ -76,11 +77,15 @@ def planner_settings(spec: PlannerSpec, planner: Planner, roadmap: Roadmap | Non
 def _sampling_settings(p: Any) -> dict[str, Any]:
     from chekhov.planners.lazy_prm import LazyPRM
     from chekhov.planners.ompl_planner import OmplPlanner
+    from chekhov.planners.rrt_connect import DeterministicRRTConnect
 
     if isinstance(p, OmplPlanner):
         return {"library": "OMPL", **p.describe()}
     if isinstance(p, LazyPRM):
         return {"library": "chekhov", "planner": "LazyPRM", "max_edge": p.max_edge,
+                **asdict(p.config)}
+    if isinstance(p, DeterministicRRTConnect):
+        return {"library": "chekhov", "planner": "RRTConnect(deterministic)", "step_rad": p.step,
                 **asdict(p.config)}
     return {"planner": getattr(p, "name", type(p).__name__)}
 

@@ -6,7 +6,7 @@ each); a case none of them solves is replaced by a new sample of the same family
 ``default_rng([seed, i, a])``, so the candidates are deterministic — and
 the new case is tried again, up to ``max_attempts`` replacements.
 
-The default decider is :class:`~chekhov.planners.rrt_connect.SeededRRTConnect` with no time
+The default decider is :class:`~chekhov.planners.rrt_connect.DeterministicRRTConnect` with no time
 limit: seeded samples, a node budget, answers certified like every planner's — so the cases
 after the pass are a function of the scene, the family, ``n`` and the seed, on any machine.
 (Deciding with OMPL's RRTConnect at 1 s, as before, replaced 3-4 different cases of 100 from
@@ -61,7 +61,7 @@ class SolvabilityReport:
     time_s: float
 
 
-DEFAULT_PLANNER = "RRTConnect(seeded)"
+DEFAULT_PLANNER = "RRTConnect(deterministic)"
 TIMED_LIMIT_S = 1.0
 """s per planner and case when planners are given and no limit is."""
 
@@ -126,11 +126,11 @@ def cached_solvable_cases(world: World, n: int, seed: int = 0,
                           family: str = "random") -> CaseSet:
     """``cached_cases(world, n, seed, family=family)`` after a solvability pass with the
     default planner (:data:`DEFAULT_PLANNER`, deterministic), cached beside them
-    (``{scene}-{hash[:12]}-{family}-s{seed}-solvable-seeded-n{n}.npz``; the files of the
+    (``{scene}-{hash[:12]}-{family}-s{seed}-solvable-deterministic-n{n}.npz``; the files of the
     earlier timed pass, ``-solvable-n{n}``, are not read): what ``chekhov bench`` uses when no
     case file is given, so no case that nothing solves counts against every planner."""
     d = Path(cache_dir) if cache_dir is not None else default_cache_dir()
-    stem = cache_stem(world, seed, "-solvable-seeded", family)
+    stem = cache_stem(world, seed, "-solvable-deterministic", family)
     cases = find_cached(world, d, stem, n, family)
     if cases is None:
         cases = solvability_pass(world, cached_cases(world, n, seed, d, family)).cases

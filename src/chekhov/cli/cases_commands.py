@@ -140,7 +140,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "--planners)")
     g.add_argument("--planners", nargs="+", metavar="NAME",
                    help="planners of the solvability pass, registry names as for `chekhov "
-                        "bench` (default RRTConnect(seeded): seeded, node-bounded, "
+                        "bench` (default RRTConnect(deterministic): seeded, node-bounded, "
                         "reproducible)")
     g.add_argument("--no-solvability", action="store_true",
                    help="skip the solvability pass (the cases are then exactly "

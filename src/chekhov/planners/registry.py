@@ -17,12 +17,13 @@ name                      planner
 ``RRT``, ``RRT*``,        OMPL RRT, RRT*, PRM* (RRT* and PRM* optimise path length and run to
 ``PRM*``                  the time limit)
 ``LazyPRM``               :class:`~chekhov.planners.lazy_prm.LazyPRM` (Bohlin & Kavraki)
-``RRTConnect(seeded)``    :class:`~chekhov.planners.rrt_connect.SeededRRTConnect`: RRT-Connect
-                          with seeded samples and a node budget (the same answer on every
-                          machine), what the solvability pass decides with
 ``X+TrajOpt``             :class:`~chekhov.planners.trajopt_planner.SeededTrajOpt`: X's path,
                           resampled to ≤ 0.16 rad, as TrajOpt's seed (the paper's Table II)
 ========================  ==================================================================
+
+And ``RRTConnect(deterministic)``:
+:class:`~chekhov.planners.rrt_connect.DeterministicRRTConnect`, RRT-Connect with seeded samples
+and a node budget (the same answer on every machine), what the solvability pass decides with.
 
 All use the world's fast checker at the same motion resolution (default 0.02 rad); OMPL's
 own defaults otherwise.
@@ -45,7 +46,7 @@ PLANNER_NAMES: tuple[str, ...] = ("Roadmap+TrajOpt", "Roadmap+TrajOpt(paper)", "
                                   "RRTConnect",
                                   "RRTConnect+TrajOpt", "RRT", "RRT+TrajOpt", "RRT*",
                                   "RRT*+TrajOpt", "PRM*", "PRM*+TrajOpt", "LazyPRM",
-                                  "LazyPRM+TrajOpt", "RRTConnect(seeded)")
+                                  "LazyPRM+TrajOpt", "RRTConnect(deterministic)")
 _OMPL_KIND = {"RRTConnect": "RRTConnect", "RRT": "RRT", "RRT*": "RRTstar", "PRM*": "PRMstar"}
 _ALIASES = {n.lower(): n for n in PLANNER_NAMES}
 _ALIASES.update({"rrtstar": "RRT*", "prmstar": "PRM*", "rrtstar+trajopt": "RRT*+TrajOpt",
@@ -130,10 +131,13 @@ class PlannerSpec:
         return self._sampling(world, name)
 
     def _sampling(self, world: World, name: str) -> Planner:
-        if name == "RRTConnect(seeded)":
-            from chekhov.planners.rrt_connect import SeededRRTConnect, SeededRRTConnectConfig
-            return SeededRRTConnect(world, SeededRRTConnectConfig(resolution=self.resolution,
-                                                                  seed=self.seed))
+        if name == "RRTConnect(deterministic)":
+            from chekhov.planners.rrt_connect import (
+                DeterministicRRTConnect,
+                DeterministicRRTConnectConfig,
+            )
+            config = DeterministicRRTConnectConfig(resolution=self.resolution, seed=self.seed)
+            return DeterministicRRTConnect(world, config)
         if name == "LazyPRM":
             from chekhov.planners.lazy_prm import LazyPRM, LazyPRMConfig
             return LazyPRM(world, LazyPRMConfig(resolution=self.resolution), seed=self.seed)

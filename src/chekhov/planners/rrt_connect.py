@@ -1,6 +1,6 @@
 """A reproducible RRT-Connect: seeded samples, a node budget instead of a clock.
 
-:class:`SeededRRTConnect` answers a query the same way on every machine and every run: its
+:class:`DeterministicRRTConnect` answers a query the same way on every machine and every run: its
 samples come from ``numpy.random.default_rng(config.seed)`` afresh for each query, its goal
 configurations from the world's goal resolver (seeded), and its search
 (:func:`chekhov.roadmap.trees.rrt_connect`) stops after ``config.max_nodes`` tree nodes — a
@@ -39,8 +39,8 @@ Array = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
-class SeededRRTConnectConfig:
-    """Settings of :class:`SeededRRTConnect`.
+class DeterministicRRTConnectConfig:
+    """Settings of :class:`DeterministicRRTConnect`.
 
     Attributes:
         max_nodes: tree nodes (both trees) after which the query fails ("no_path").
@@ -63,25 +63,25 @@ class SeededRRTConnectConfig:
         for name in ("max_nodes", "n_ik"):
             v = getattr(self, name)
             if not (isinstance(v, int) and v >= 1):
-                raise ChekhovError(f"SeededRRTConnectConfig.{name}: must be an integer >= 1, "
-                                   f"got {v!r}")
+                raise ChekhovError(f"DeterministicRRTConnectConfig.{name}: must be an integer "
+                                   f">= 1, got {v!r}")
         if not 0 < self.range_fraction <= 1:
-            raise ChekhovError(f"SeededRRTConnectConfig.range_fraction: must be in (0, 1], "
+            raise ChekhovError(f"DeterministicRRTConnectConfig.range_fraction: must be in (0, 1], "
                                f"got {self.range_fraction!r}")
         if not self.resolution > 0:
-            raise ChekhovError(f"SeededRRTConnectConfig.resolution: must be > 0, got "
+            raise ChekhovError(f"DeterministicRRTConnectConfig.resolution: must be > 0, got "
                                f"{self.resolution!r}")
 
 
-class SeededRRTConnect(PlannerBase):
+class DeterministicRRTConnect(PlannerBase):
     """RRT-Connect whose answer is a function of the query and the config (module docstring)."""
 
     fast_free_ends = True
 
-    def __init__(self, world: World, config: SeededRRTConnectConfig | None = None) -> None:
+    def __init__(self, world: World, config: DeterministicRRTConnectConfig | None = None) -> None:
         self.world = world
-        self.config = config if config is not None else SeededRRTConnectConfig()
-        self.name = "RRTConnect(seeded)"
+        self.config = config if config is not None else DeterministicRRTConnectConfig()
+        self.name = "RRTConnect(deterministic)"
         robot = world.robot
         self.step = self.config.range_fraction * float(np.linalg.norm(robot.upper - robot.lower))
         world.goal_ik.warmup()
