@@ -75,7 +75,8 @@ def world(world_of):
 
 def test_same_query_same_answer_and_certified(world):
     """Two planners, the same query: identical paths; each checked here by coal at 400
-    substeps per segment and the joint limits."""
+    substeps per segment and the joint limits. The answer carries the proof its edges'
+    checks made (and that proof covers the path the final check saw)."""
     cases = generate_cases(world, 4, seed=3)
     a, b = DeterministicRRTConnect(world), DeterministicRRTConnect(world)
     solved = 0
@@ -87,6 +88,8 @@ def test_same_query_same_answer_and_certified(world):
         if ra.success:
             solved += 1
             np.testing.assert_array_equal(ra.path, rb.path)
+            assert ra.certificate is not None
+            assert ra.certificate.covers_resampled(ra.path, 100, world.fast)
             assert world.exact.path_valid(ra.path, substeps=400)
             assert world.robot.within_limits(ra.path).all()
     assert solved >= 3

@@ -11,7 +11,8 @@ how fast the machine was that day. OMPL's RRTConnect stays the baseline to race 
 Like OMPL's planners here: the fast checker's state and motion tests (every ``resolution``
 rad), OMPL's default step (0.2 × the joint space's diagonal), up to ``n_ik`` goal IK solutions
 as goal roots, ends the fast checker rejects planned to through their exits; the answer is
-certified by :meth:`PlannerBase.plan` like every planner's. Unlike them, a path found is
+certified by :meth:`PlannerBase.plan` like every planner's — with the proof its edges' checks
+and its inner waypoints' cells make, so the final check decides nothing twice. A path found is
 checked edge by edge first (:func:`~chekhov.collision.path_check.motion_certified`, what the
 certification asks of each segment) and an edge refused there is cut from its tree and the
 search goes on: a fast-free motion at 0.02 rad steps can still touch between them (measured:
@@ -27,9 +28,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from chekhov.collision.path_check import motion_certified
+from chekhov.collision.path_check import PathCertificate, motion_certified
+from chekhov.collision.route_check import route_decision
 from chekhov.errors import ChekhovError
 from chekhov.planners.base import PlannerBase, PlanResult, solve_goal_ik
+from chekhov.planners.ompl_planner import CERTIFY_RESERVE, CERTIFY_RESERVE_MAX_S
 from chekhov.planners.query import PlanQuery
 from chekhov.planners.status import PlanStatus
 from chekhov.roadmap.trees import rrt_connect
@@ -91,28 +94,33 @@ class DeterministicRRTConnect(PlannerBase):
         return bool(fast.valid(q1[None])[0] and fast.motions_valid(
             q0[None], q1[None], self.config.resolution)[0])
 
-    def _certified(self, q0: Array, q1: Array) -> bool:
-        w = self.world
-        return motion_certified(w.fast, w.exact, q0, q1)
 
     def _plan(self, query: PlanQuery) -> PlanResult:
         cfg, robot = self.config, self.world.robot
         timing: dict[str, float] = {}
         info: dict[str, object] = {"max_nodes": cfg.max_nodes}
 
-        def done(status: PlanStatus, path: Array | None = None) -> PlanResult:
+        def done(status: PlanStatus, path: Array | None = None,
+                 certificate: PathCertificate | None = None) -> PlanResult:
             return PlanResult(path is not None, path, status, time.perf_counter() - query.t0,
-                              timing, info=info)
+                              timing, info=info, certificate=certificate)
 
         goals = solve_goal_ik(self.world, query, cfg.n_ik, timing, info)
         if goals is None:
             return done(PlanStatus.TIMEOUT if query.expired() else PlanStatus.NO_IK)
         rng = np.random.default_rng(cfg.seed)
         t = time.perf_counter()
+        # as OMPL's planners here: a share of the time left is kept for the certification
+        left = query.deadline - t
+        deadline = query.deadline - min(CERTIFY_RESERVE * left, CERTIFY_RESERVE_MAX_S)
+        w = self.world
+
+        def certified(q0: Array, q1: Array) -> bool:
+            return motion_certified(w.fast, w.exact, q0, q1, deadline)
+
         found = rrt_connect(query.q_start, goals, self._free,
                             lambda: robot.sample_uniform(rng, 1)[0], step=self.step,
-                            max_nodes=cfg.max_nodes, deadline=query.deadline,
-                            certify=self._certified)
+                            max_nodes=cfg.max_nodes, deadline=deadline, certify=certified)
         timing["search"] = time.perf_counter() - t
         info["tree_nodes"] = found.n_nodes
         if found.status == "timeout":
@@ -120,4 +128,15 @@ class DeterministicRRTConnect(PlannerBase):
         if found.path is None:
             info["error"] = f"no path within {cfg.max_nodes} tree nodes"
             return done(PlanStatus.NO_PATH)
-        return done(PlanStatus.SOLVED, found.path)
+        return done(PlanStatus.SOLVED, found.path, self._certificate(found.path, deadline))
+
+    def _certificate(self, path: Array, deadline: float) -> PathCertificate | None:
+        """The certification's proof for ``path`` (T, K), whose every edge passed
+        ``motion_certified``: only the cells at its inner waypoints are left to decide
+        (:func:`~chekhov.collision.route_check.route_decision`); None when one is not (the
+        certification then decides the whole path, and refuses it)."""
+        if len(path) < 2:
+            return None
+        w = self.world
+        known = np.ones(len(path) - 1, dtype=bool)
+        return route_decision(w.fast, w.exact, path, known, deadline).certificate

@@ -141,7 +141,7 @@ class _Search:
                 path = (self._attach(a, i_new, deadline)
                         if extended % cfg.attach_every == 0 else None)
                 if path is None:
-                    j = self.bi.connect(1 - a, self.trees[a].X[i_new])
+                    j = self.bi.connect(1 - a, self.trees[a].X[i_new], deadline)
                     if j is not None:
                         self.via = "trees"
                         path = self.bi.join(a, i_new, j)

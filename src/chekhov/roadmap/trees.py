@@ -97,11 +97,14 @@ class BiTrees:
             return None
         return tree.add(q_new, i)
 
-    def connect(self, b: int, q: Array) -> int | None:
-        """Pull tree b straight towards q in steps; its node at q when it gets there."""
+    def connect(self, b: int, q: Array, deadline: float = math.inf) -> int | None:
+        """Pull tree b straight towards q in steps; its node at q when it gets there (None
+        when blocked, or at ``deadline``, a ``time.perf_counter()`` value)."""
         tree = self.trees[b]
         i = tree.nearest(q)
         while True:
+            if time.perf_counter() >= deadline:
+                return None
             q_new = self.toward(tree.X[i], q)
             if not self.free(tree.X[i], q_new):
                 return None
@@ -157,7 +160,8 @@ def rrt_connect(q_start: Array, Q_goal: Array, free: MotionFn, sample: Callable[
 
     ``certify`` (a stricter motion test than ``free``, e.g. the exact checker's at the
     certification's substeps) is asked, lazily, only about the edges of a path found: a
-    refused edge's subtree is pruned and the search goes on.
+    refused edge's subtree is pruned and the search goes on. (One that keeps the deadline by
+    refusing once it has passed only prunes what the search, ending then, no longer needs.)
     """
     bi = BiTrees(q_start, Q_goal, free, step)
     passed: set[tuple[int, int]] = set()
@@ -167,7 +171,7 @@ def rrt_connect(q_start: Array, Q_goal: Array, free: MotionFn, sample: Callable[
             return TreeSearch(None, "timeout", bi.n_nodes)
         i_new = bi.extend(a, sample())
         if i_new is not None:
-            j = bi.connect(1 - a, bi.trees[a].X[i_new])
+            j = bi.connect(1 - a, bi.trees[a].X[i_new], deadline)
             if j is not None:
                 refused = None if certify is None else bi.refused_edge(a, i_new, j, certify,
                                                                        passed)
