@@ -46,7 +46,7 @@ from chekhov.bench.registry import (
     settings_text,
     uses_roadmap,
 )
-from chekhov.bench.solvability import cached_solvable_cases
+from chekhov.bench.solvability import DEFAULT_PLANNER, cached_solvable_cases
 from chekhov.bench.task import RunTask, case_hash
 from chekhov.bench.worker import load_roadmap_for
 from chekhov.cases import CaseSet
@@ -104,16 +104,16 @@ class _Plan:
 def load_cases(world: World, config: BenchConfig, family: str = "random"
                ) -> tuple[CaseSet, str]:
     """The first ``config.n_cases`` cases of the scene's ``family`` and a description of their
-    source (for the random family the same text as before the families, so that databases
-    written then resume)."""
+    source (naming the solvability pass's planner: a database written with the timed pass
+    before session 38 starts new experiments, as its cases may differ)."""
     files = [CaseSet.load(p, world) for p in config.case_files_of(world.scene.name)]
     found = [(p, c) for p, c in zip(config.case_files_of(world.scene.name), files,
                                     strict=True) if c.family == family]
     if not found:
         cases = cached_solvable_cases(world, config.n_cases, config.case_seed, family=family)
         kind = "" if family == "random" else f"{family} cases, "
-        return (cases, f"generated ({kind}seed {config.case_seed}, solvability pass: "
-                       f"{cases.replaced} replaced)")
+        return (cases, f"generated ({kind}seed {config.case_seed}, solvability pass by "
+                       f"{DEFAULT_PLANNER}: {cases.replaced} replaced)")
     path, cases = found[0]
     if len(cases) < config.n_cases:
         raise ChekhovError(f"{path}: {len(cases)} cases, --cases asks for {config.n_cases}")
