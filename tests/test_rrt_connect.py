@@ -2,8 +2,12 @@
 same query, same answer; a path's edges refused by the stricter test are cut and the search
 goes on; the budget ends a hopeless search."""
 
+from itertools import pairwise
+
 import numpy as np
 import pytest
+from hypothesis import event, given
+from hypothesis import strategies as st
 
 from chekhov.bench.solvability import solvability_pass
 from chekhov.cases import generate_cases
@@ -43,6 +47,60 @@ def test_refused_edges_are_cut_and_the_search_goes_on():
         assert r.path[:, 1].max() > 0.6        # through the gap
         np.testing.assert_array_equal(r.path[0], [-0.8, -0.8])
         np.testing.assert_array_equal(r.path[-1], [0.8, -0.8])
+
+
+def _hits_box(q0, q1, box):
+    """Whether the segment q0 → q1 meets the axis-aligned box (lo, hi) (slab test)."""
+    lo, hi = box
+    t0, t1 = 0.0, 1.0
+    d = q1 - q0
+    for k in range(2):
+        if abs(d[k]) < 1e-15:
+            if not lo[k] <= q0[k] <= hi[k]:
+                return False
+            continue
+        a, b = (lo[k] - q0[k]) / d[k], (hi[k] - q0[k]) / d[k]
+        t0, t1 = max(t0, min(a, b)), min(t1, max(a, b))
+    return t0 <= t1
+
+
+boxes = st.lists(st.tuples(st.floats(-0.9, 0.7), st.floats(-0.9, 0.7), st.floats(0.02, 0.3),
+                           st.floats(0.02, 0.3)), min_size=1, max_size=6)
+
+
+@given(boxes, st.integers(0, 2**32 - 1))
+def test_any_path_found_is_certified_edge_by_edge(spec, seed):
+    """Random boxes in the square; ``free`` sees only a motion's end, ``certify`` the whole
+    segment. Whatever is found starts at the start, ends at a goal root, steps at most
+    ``step``, and every edge passes ``certify``; the same seed finds the same path."""
+    B = [(np.array([x, y]), np.array([x + w, y + h])) for x, y, w, h in spec]
+    start, goals = np.array([-0.95, -0.95]), np.array([[0.95, 0.95], [0.95, -0.95]])
+
+    def inside(q):
+        return any((lo <= q).all() and (q <= hi).all() for lo, hi in B)
+
+    if inside(start) or all(inside(g) for g in goals):
+        event("an end inside a box")
+        return
+    goals = goals[[not inside(g) for g in goals]]
+
+    def run():
+        rng = np.random.default_rng(seed)
+        return rrt_connect(start, goals, lambda a, b: not inside(b), lambda: rng.uniform(LO, HI),
+                           step=0.25, max_nodes=1500,
+                           certify=lambda a, b: not any(_hits_box(a, b, x) for x in B))
+
+    r = run()
+    event(r.status)
+    if r.path is None:
+        assert r.status == "exhausted" and r.n_nodes >= 1500
+        return
+    P = r.path
+    np.testing.assert_array_equal(P[0], start)
+    assert any(np.array_equal(P[-1], g) for g in goals)
+    assert (np.linalg.norm(np.diff(P, axis=0), axis=1) <= 0.25 + 1e-12).all()
+    assert not any(_hits_box(a, b, x) for a, b in pairwise(P) for x in B)
+    np.testing.assert_array_equal(run().path, P)
 
 
 def test_the_node_budget_ends_a_hopeless_search():
