@@ -94,7 +94,6 @@ class DeterministicRRTConnect(PlannerBase):
         return bool(fast.valid(q1[None])[0] and fast.motions_valid(
             q0[None], q1[None], self.config.resolution)[0])
 
-
     def _plan(self, query: PlanQuery) -> PlanResult:
         cfg, robot = self.config, self.world.robot
         timing: dict[str, float] = {}

@@ -5,13 +5,13 @@ roadmap, the query is not given up. Two trees grow in the current world — one 
 one from every goal configuration — by RRT-Connect (:mod:`chekhov.roadmap.trees`; Kuffner &
 LaValle 2000: extend one tree towards a uniform sample, then pull the other straight towards
 the new node, swap; steps of at most ``range_fraction`` of the joint space's diagonal, OMPL's
-default range). Every new node
-of an extend step also tries a straight motion to its nearest roadmap nodes that are still
-valid; once both trees touch the roadmap, the roadmap is searched between the touched nodes
-(cached shortest path, stored k shortest, then lazy A* on what the obstacles left). Whichever
-closes first — the trees meeting, or a route through the roadmap — gives the path. The search
-stops only at its deadline (or after ``max_nodes`` tree nodes), so wherever RRT-Connect finds
-a path in time, this does too, usually sooner: the roadmap carries the long way round.
+default range). Every new node of an extend step also tries a straight motion to its nearest
+roadmap nodes that are still valid; once both trees touch the roadmap, the roadmap is searched
+between the touched nodes (cached shortest path, stored k shortest, then lazy A* on what the
+obstacles left). Whichever closes first — the trees meeting, or a route through the roadmap —
+gives the path. The search stops only at its deadline (or after ``max_nodes`` tree nodes), so
+wherever RRT-Connect finds a path in time, this does too, usually sooner: the roadmap carries
+the long way round.
 
 Motions are checked by the fast checker at the roadmap's resolution; the caller certifies the
 final path exactly, as for every planner.
