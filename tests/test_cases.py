@@ -100,9 +100,15 @@ def test_solvability_pass_replaces_unsolved_cases_deterministically(world, cases
     assert world.exact.valid(rep.cases.q_start[1:2]).all()
 
 
-def test_solvability_pass_with_the_default_planner(world, cases):
+def test_solvability_pass_with_the_default_planner(world, cases, tmp_path):
+    """The default pass, recorded in the cases (and their file): which planner, what limit."""
     rep = solvability_pass(world, cases.head(2))
     assert rep.planners == ("RRTConnect(deterministic)",) and len(rep.cases) == 2
+    assert rep.cases.solvability == "RRTConnect(deterministic), no time limit"
+    again = solvability_pass(world, rep.cases, [_FailsOn([])], time_limit_s=0.1).cases
+    assert again.solvability == ("RRTConnect(deterministic), no time limit; stub, 0.1 s each")
+    loaded = CaseSet.load(again.save(tmp_path / "c.npz"), world)
+    assert loaded.solvability == again.solvability and loaded.same_as(again)
 
 
 def test_cached_cases_generate_once(world, tmp_path):
@@ -132,6 +138,7 @@ def test_cli_generate_and_info(tmp_path, capsys):
     assert main(["cases", "info", str(out), "--scene", "tabletop_pole"]) == 0
     text = capsys.readouterr().out
     assert "tabletop_pole" in text and "3 (seed 2" in text and "matches" in text
+    assert "solvability RRTConnect(deterministic), 1 s each" in text
     assert main(["cases", "info", str(out), "--scene", "kitchen"]) == 2
     assert "not for scene 'kitchen'" in capsys.readouterr().err
 
@@ -245,6 +252,18 @@ def test_old_version_files_are_read_as_random_and_unclear_ones_refused(world, ca
 
     old = CaseSet.load(_rewrite_case_file(path, tmp_path / "v1.npz", v1), world)
     assert old.family == "random" and old.same_as(cases)
+
+    def before_solvability_field(meta):   # version 2 as written before session 38
+        del meta["solvability"]
+
+    older = _rewrite_case_file(path, tmp_path / "v2old.npz", before_solvability_field)
+    assert CaseSet.load(older, world).solvability == ""
+
+    def bad_solvability(meta):
+        meta["solvability"] = 3
+
+    with pytest.raises(CaseFileError, match=r"badsolv\.npz: meta field 'solvability' must be"):
+        CaseSet.load(_rewrite_case_file(path, tmp_path / "badsolv.npz", bad_solvability))
 
     def no_family(meta):
         del meta["family"]

@@ -54,6 +54,8 @@ class CaseSet:
         q_start, q_goal: (N, K) configurations, rad.
         T_world_ee_start, T_world_ee_goal: (N, 4, 4) end-effector poses in the world (m).
         replaced: how many cases solvability passes replaced with new samples.
+        solvability: which planners decided those passes, under what time limit ("" when
+            none ran, or the file predates the field).
         family: "random" or "tasks" (see the module docstring).
         start_labels, goal_labels: N strings each for the tasks family (what the start and the
             goal are), empty for the random family.
@@ -70,6 +72,7 @@ class CaseSet:
     T_world_ee_goal: Array
     replaced: int = 0
     family: str = "random"
+    solvability: str = ""
     start_labels: tuple[str, ...] = ()
     goal_labels: tuple[str, ...] = ()
 
@@ -124,7 +127,8 @@ class CaseSet:
                 "scene": self.scene,
                 "scene_hash": self.scene_hash, "robot": self.robot,
                 "joint_names": list(self.joint_names), "seed": int(self.seed), "n": len(self),
-                "replaced": int(self.replaced), "units": _UNITS}
+                "replaced": int(self.replaced), "solvability": self.solvability,
+                "units": _UNITS}
 
     # --- files --------------------------------------------------------------------------
     def save(self, path: str | Path) -> Path:
@@ -159,7 +163,8 @@ class CaseSet:
             cases = cls(scene=meta["scene"], scene_hash=meta["scene_hash"],
                         robot=meta["robot"], joint_names=tuple(meta["joint_names"]),
                         seed=meta["seed"], replaced=meta.get("replaced", 0),
-                        family=meta["family"], start_labels=labels[0], goal_labels=labels[1],
+                        solvability=meta.get("solvability", ""), family=meta["family"],
+                        start_labels=labels[0], goal_labels=labels[1],
                         **{a: data[a] for a in _ARRAYS})
         except ChekhovError as e:
             raise CaseFileError(f"{path}: {e}") from e
@@ -188,7 +193,9 @@ class CaseSet:
 _FIELDS: dict[str, tuple[type, str]] = {
     "scene": (str, "a string"), "scene_hash": (str, "a string"), "robot": (str, "a string"),
     "joint_names": (list, "a non-empty list of joint names"), "seed": (int, "an integer"),
-    "n": (int, "an integer ≥ 1"), "replaced": (int, "an integer ≥ 0")}
+    "n": (int, "an integer ≥ 1"), "replaced": (int, "an integer ≥ 0"),
+    "solvability": (str, "a string")}
+_OPTIONAL = ("replaced", "solvability")
 
 
 def _read_header(path: Path, data: dict[str, np.ndarray]) -> dict[str, Any]:
@@ -220,7 +227,7 @@ def _read_header(path: Path, data: dict[str, np.ndarray]) -> dict[str, Any]:
                             f"got {meta['family']!r:.60}")
     for key, (typ, expected) in _FIELDS.items():
         if key not in meta:
-            if key == "replaced":
+            if key in _OPTIONAL:
                 continue
             raise CaseFileError(f"{path}: case file lacks the meta field '{key}'")
         v = meta[key]

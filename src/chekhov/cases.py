@@ -32,7 +32,7 @@ File format (``CASE_FORMAT`` version ``CASE_FORMAT_VERSION`` = 2): a NumPy ``.np
 * ``meta``: a 0-d unicode array holding JSON: ``{"format": "chekhov-cases", "version": 2,
   "family": "random" | "tasks", "scene": name, "scene_hash": SHA-256 of the scene content
   (``Scene.content_hash``), "robot": name, "joint_names": [...], "seed": int, "n": int,
-  "replaced": int, "units": {...}}``;
+  "replaced": int, "solvability": str, "units": {...}}``;
 * ``q_start``, ``q_goal``: float64 (N, K), rad, joint order ``joint_names``;
 * ``T_world_ee_start``, ``T_world_ee_goal``: float64 (N, 4, 4), end-effector frame in the world
   (m for the translation);
@@ -40,11 +40,13 @@ File format (``CASE_FORMAT`` version ``CASE_FORMAT_VERSION`` = 2): a NumPy ``.np
   goal is (see above).
 
 ``replaced`` counts the cases a solvability pass (:func:`chekhov.bench.solvability_pass`)
-replaced with new samples. Loading checks the format, the version and, given a world, that the
-file belongs to that world's scene (content hash) and robot. Version 1 (before the families:
-the same layout without ``family``) is read as family ``"random"``, which is what every
-version-1 file holds; a version-2 file without ``family`` is refused, naming the file and
-the field.
+replaced with new samples; ``solvability`` says which planners decided it and under what limit
+("" for none, and in files written before the field: both optional, so files with and without
+it read alike, in this chekhov and in one before it). Loading checks the format, the version
+and, given a world, that the file belongs to that world's scene (content hash) and robot.
+Version 1 (before the families: the same layout without ``family``) is read as family
+``"random"``, which is what every version-1 file holds; a version-2 file without ``family`` is
+refused, naming the file and the field.
 
 This module sits beside :mod:`chekhov.world` (it needs a world and nothing above it), so the
 benchmark, the viewer and the CLI all read cases from here; ``chekhov.bench.cases`` re-exports

@@ -46,7 +46,7 @@ from chekhov.bench.registry import (
     settings_text,
     uses_roadmap,
 )
-from chekhov.bench.solvability import DEFAULT_PLANNER, cached_solvable_cases
+from chekhov.bench.solvability import cached_solvable_cases
 from chekhov.bench.task import RunTask, case_hash
 from chekhov.bench.worker import load_roadmap_for
 from chekhov.cases import CaseSet
@@ -113,7 +113,8 @@ def load_cases(world: World, config: BenchConfig, family: str = "random"
         cases = cached_solvable_cases(world, config.n_cases, config.case_seed, family=family)
         kind = "" if family == "random" else f"{family} cases, "
         return (cases, f"generated ({kind}seed {config.case_seed}, solvability pass by "
-                       f"{DEFAULT_PLANNER}: {cases.replaced} replaced)")
+                       f"{cases.solvability or 'an unrecorded planner'}: {cases.replaced} "
+                       "replaced)")
     path, cases = found[0]
     if len(cases) < config.n_cases:
         raise ChekhovError(f"{path}: {len(cases)} cases, --cases asks for {config.n_cases}")

@@ -108,9 +108,12 @@ def solvability_pass(world: World, cases: CaseSet, planners: Sequence[Planner] |
             replaced_idx.append(i)
         if progress is not None:
             progress(i + 1, len(cases))
+    limit = "no time limit" if math.isinf(time_limit_s) else f"{time_limit_s:g} s each"
+    decided = f"{', '.join(p.name for p in planners)}, {limit}"
     out = replace(cases, q_start=q_start, q_goal=q_goal, T_world_ee_start=T_start,
                   T_world_ee_goal=T_goal, replaced=cases.replaced + replaced,
-                  start_labels=tuple(starts), goal_labels=tuple(goals))
+                  start_labels=tuple(starts), goal_labels=tuple(goals),
+                  solvability="; ".join(x for x in (cases.solvability, decided) if x))
     return SolvabilityReport(out, replaced, tuple(replaced_idx), tuple(unsolved),
                              tuple(p.name for p in planners), float(time_limit_s),
                              time.perf_counter() - t0)

@@ -79,9 +79,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
         if sys.stderr.isatty():
             print(file=sys.stderr)
         cases = rep.cases
-        limit = "no time limit" if math.isinf(rep.time_limit_s) else \
-            f"{rep.time_limit_s:g} s each"
-        print(f"solvability pass ({', '.join(rep.planners)}, {limit}): "
+        print(f"solvability pass ({rep.cases.solvability}): "
               f"{rep.replaced} replacement(s) for {len(rep.replaced_indices)} case(s)"
               + (f", {len(rep.unsolved_indices)} still unsolved" if rep.unsolved_indices else "")
               + f", {rep.time_s:.1f} s")
@@ -106,6 +104,7 @@ def _cmd_info(args: argparse.Namespace) -> int:
     print(f"  cases      {len(cases)} (seed {cases.seed}, {cases.replaced} replaced by "
           "solvability passes)")
     print(f"  family     {cases.family}")
+    print(f"  solvability {cases.solvability or 'none recorded'}")
     if cases.family == "tasks":
         ready = sum(1 for x in cases.start_labels if x == "ready")
         place = sum(1 for x in cases.goal_labels if x.startswith("place:"))
