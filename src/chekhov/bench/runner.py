@@ -99,18 +99,25 @@ class _Plan:
     planner_ids: dict[tuple[str, str], int] = field(default_factory=dict)
     tasks: list[RunTask] = field(default_factory=list)
     skipped: int = 0
+    progress: bool = True     # draw the progress of the work before the runs too
 
 
-def load_cases(world: World, config: BenchConfig, family: str = "random"
-               ) -> tuple[CaseSet, str]:
+def load_cases(world: World, config: BenchConfig, family: str = "random", *,
+               progress: bool = False) -> tuple[CaseSet, str]:
     """The first ``config.n_cases`` cases of the scene's ``family`` and a description of their
     source (naming the solvability pass's planner: a database written with the timed pass
-    before session 38 starts new experiments, as its cases may differ)."""
+    before session 38 starts new experiments, as its cases may differ). ``progress``: a bar
+    for a solvability pass not cached yet (500 task cases take minutes)."""
     files = [CaseSet.load(p, world) for p in config.case_files_of(world.scene.name)]
     found = [(p, c) for p, c in zip(config.case_files_of(world.scene.name), files,
                                     strict=True) if c.family == family]
     if not found:
-        cases = cached_solvable_cases(world, config.n_cases, config.case_seed, family=family)
+        bar = ProgressBar(config.n_cases, f"cases {world.scene.name} {family}",
+                          enabled=progress)
+        cases = cached_solvable_cases(world, config.n_cases, config.case_seed, family=family,
+                                      progress=lambda done, total: bar.update())
+        if bar.done:         # a pass ran (none when the cases were cached)
+            bar.close()
         kind = "" if family == "random" else f"{family} cases, "
         return (cases, f"generated ({kind}seed {config.case_seed}, solvability pass by "
                        f"{cases.solvability or 'an unrecorded planner'}: {cases.replaced} "
@@ -128,7 +135,7 @@ def run_benchmark(config: BenchConfig, db_path: str | Path, progress: bool = Tru
     t0 = time.perf_counter()
     db_path = Path(db_path)
     with BenchDatabase(db_path, config.db_lock_timeout_s) as db:
-        plan = _Plan()
+        plan = _Plan(progress=progress)
         for scene in config.scenes:
             _plan_scene(db, db_path, config, scene, plan)
         # case-major order: every scene and planner advances together, so an interrupted
@@ -172,7 +179,7 @@ def _plan_scene(db: BenchDatabase, db_path: Path, config: BenchConfig, scene: st
 def _plan_family(db: BenchDatabase, db_path: Path, config: BenchConfig, world: World,
                  scene: str, family: str, plan: _Plan) -> None:
     """The experiment of (scene, family) and its runs not stored yet (see _plan_scene)."""
-    cases, source = load_cases(world, config, family)
+    cases, source = load_cases(world, config, family, progress=plan.progress)
     setup = {"scene": world.scene.name, "robot": world.robot.name,
              "cases": source, "time_limit_s": config.time_limit_s,
              "resolution_rad": config.resolution, "exact_substeps": config.exact_substeps}

@@ -126,16 +126,19 @@ def _solved(planners: Sequence[Planner], q_start: np.ndarray, goal: Goal,
 
 def cached_solvable_cases(world: World, n: int, seed: int = 0,
                           cache_dir: str | Path | None = None,
-                          family: str = "random") -> CaseSet:
+                          family: str = "random",
+                          progress: Callable[[int, int], None] | None = None) -> CaseSet:
     """``cached_cases(world, n, seed, family=family)`` after a solvability pass with the
     default planner (:data:`DEFAULT_PLANNER`, deterministic), cached beside them
     (``{scene}-{hash[:12]}-{family}-s{seed}-solvable-deterministic-n{n}.npz``; the files of the
     earlier timed pass, ``-solvable-n{n}``, are not read): what ``chekhov bench`` uses when no
-    case file is given, so no case that nothing solves counts against every planner."""
+    case file is given, so no case that nothing solves counts against every planner.
+    ``progress(done, total)``: after each case of a pass (none when the file is cached)."""
     d = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     stem = cache_stem(world, seed, "-solvable-deterministic", family)
     cases = find_cached(world, d, stem, n, family)
     if cases is None:
-        cases = solvability_pass(world, cached_cases(world, n, seed, d, family)).cases
+        cases = solvability_pass(world, cached_cases(world, n, seed, d, family),
+                                 progress=progress).cases
         cases.save(d / f"{stem}-n{n}.npz")
     return cases
