@@ -160,8 +160,8 @@ def test_two_processes_on_one_database_split_the_runs(cache):
 
 
 def bad_goal_cases(real):
-    def load(world, cfg, *family):
-        cases, source = real(world, cfg, *family)
+    def load(world, cfg, *family, **kw):
+        cases, source = real(world, cfg, *family, **kw)
         T = cases.T_world_ee_goal.copy()
         T[1, 0, 3] = np.nan
         from dataclasses import replace
