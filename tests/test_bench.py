@@ -264,6 +264,10 @@ def test_progress_logs_every_tenth_and_at_least_every_interval_off_a_terminal():
     for _ in range(100):
         bar.update(failed=True)
     assert len(out.getvalue().splitlines()) == 100 and "(100 failed)" in out.getvalue()
+    out = io.StringIO()
+    bar = ProgressBar(10, "cases", stream=out, count_failures=False)
+    bar.update()
+    assert "1/10" in out.getvalue() and "failed" not in out.getvalue()
 
 
 def test_fallback_to_seed_is_read_from_the_stages_and_solutions():

@@ -14,17 +14,20 @@ class ProgressBar:
     Args:
         total: units of work. label: shown before the bar. stream: default stderr.
         enabled: False draws nothing. log_interval_s: most seconds between lines when the
-        stream is not a terminal.
+        stream is not a terminal. count_failures: show "(N failed)" (off for work whose
+        units cannot fail).
     """
 
     def __init__(self, total: int, label: str = "bench", stream: TextIO | None = None,
-                 enabled: bool = True, width: int = 30, log_interval_s: float = 30.0) -> None:
+                 enabled: bool = True, width: int = 30, log_interval_s: float = 30.0,
+                 count_failures: bool = True) -> None:
         self.total = max(int(total), 0)
         self.label = label
         self.stream = stream if stream is not None else sys.stderr
         self.enabled = enabled and self.total > 0
         self.width = width
         self.log_interval_s = log_interval_s
+        self.count_failures = count_failures
         self.done = 0
         self.failed = 0
         self.t0 = time.perf_counter()
@@ -59,7 +62,8 @@ class ProgressBar:
         eta = elapsed / self.done * (self.total - self.done) if self.done else float("nan")
         return (f"{self.label} [{'#' * filled}{' ' * (self.width - filled)}] "
                 f"{self.done}/{self.total} {100 * frac:3.0f}%  {_clock(elapsed)} elapsed  "
-                f"ETA {_clock(eta)}  ({self.failed} failed)")
+                f"ETA {_clock(eta)}" + (f"  ({self.failed} failed)" if self.count_failures
+                                        else ""))
 
     def close(self) -> None:
         if self.enabled and self._tty:

@@ -113,7 +113,7 @@ def load_cases(world: World, config: BenchConfig, family: str = "random", *,
                                     strict=True) if c.family == family]
     if not found:
         bar = ProgressBar(config.n_cases, f"cases {world.scene.name} {family}",
-                          enabled=progress)
+                          enabled=progress, count_failures=False)
         cases = cached_solvable_cases(world, config.n_cases, config.case_seed, family=family,
                                       progress=lambda done, total: bar.update())
         if bar.done:         # a pass ran (none when the cases were cached)
