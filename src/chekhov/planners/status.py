@@ -21,7 +21,8 @@ class PlanStatus(StrEnum):
 
     The query: ``INVALID_START`` / ``INVALID_GOAL`` (an end in collision), ``NO_IK`` (no
     collision-free IK solution of the goal pose). The search: ``NO_CONNECTION`` (the roadmap
-    could not connect the start or goal), ``NO_PATH`` (dynamic obstacles cut every route),
+    could not connect the start or goal), ``NO_PATH`` (dynamic obstacles cut every route; a
+    node-bounded tree search, ``RRTConnect(deterministic)``, used up its nodes),
     ``INFEASIBLE`` (TrajOpt could not meet its constraints), ``ABANDONED`` (an improvement
     stage stopped early: it was not going to beat the answer so far), ``COLLISION`` (the
     answer failed the exact check), ``BAD_PROBLEM`` (the optimisation problem could not be built),
