@@ -35,7 +35,7 @@ from chekhov.world import World
 
 # the registry's sampling-based planners (chekhov.planners.registry); --planners takes any
 # registry name or alias
-ALL = ["RRTConnect", "RRT", "RRT*", "PRM*", "LazyPRM"]
+ALL = ["RRTConnect", "RRT", "RRT*", "PRM*", "LazyPRM", "RRTConnect(deterministic)"]
 
 
 def planner_name(text: str) -> str:
