@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from chekhov._config_checks import int_at_least
 from chekhov.errors import ChekhovError
 from chekhov.roadmap.seeder import SeederConfig
 from chekhov.trajopt.config import TrajOptConfig
@@ -143,6 +144,4 @@ class RoadmapTrajOptConfig:
             raise ChekhovError(f"RoadmapTrajOptConfig.abandon_ratio: must be a number >= 1 (a "
                                f"run is abandoned only when longer than the answer so far), "
                                f"got {r!r}")
-        if not (isinstance(self.goal_routes, int) and self.goal_routes >= 1):
-            raise ChekhovError(f"RoadmapTrajOptConfig.goal_routes: must be an integer >= 1, "
-                               f"got {self.goal_routes!r}")
+        int_at_least("RoadmapTrajOptConfig", "goal_routes", self.goal_routes, 1)

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
-from chekhov.errors import ChekhovError
+from chekhov._config_checks import in_unit_interval, int_at_least
 from chekhov.roadmap.errors import RoadmapError
 
 
@@ -125,16 +125,10 @@ class RepairConfig:
     seed: int = 0
 
     def __post_init__(self) -> None:
-        if not 0 < self.range_fraction <= 1:
-            raise ChekhovError(f"RepairConfig.range_fraction: must be in (0, 1], got "
-                               f"{self.range_fraction!r}")
-        if not (isinstance(self.attach_every, int) and self.attach_every >= 1):
-            raise ChekhovError(f"RepairConfig.attach_every: must be an integer >= 1, got "
-                               f"{self.attach_every!r}")
+        in_unit_interval("RepairConfig", "range_fraction", self.range_fraction)
+        int_at_least("RepairConfig", "attach_every", self.attach_every, 1)
         for name in ("attach_candidates", "route_pairs", "max_nodes", "goal_roots"):
-            v = getattr(self, name)
-            if not (isinstance(v, int) and v >= 0):
-                raise ChekhovError(f"RepairConfig.{name}: must be an integer >= 0, got {v!r}")
+            int_at_least("RepairConfig", name, getattr(self, name), 0)
 
 
 @dataclass(frozen=True)
