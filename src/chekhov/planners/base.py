@@ -33,12 +33,18 @@ TIMING_RESERVE_S = 0.05
 """s of the time limit that must be left for ``plan()`` to time its answer (toppra and the
 exact re-check of the timed trajectory take 7-32 ms on the built-in scenes' answers)."""
 
+CERTIFY_RESERVE = 0.1
+"""Share of the remaining time a sampling planner's search keeps back for certifying its path
+(:func:`search_deadline`)."""
+CERTIFY_RESERVE_MAX_S = 0.05
+
 __all__ = [
     "PlanResult",
     "Planner",
     "PlannerBase",
     "path_length",
     "resample_path",
+    "search_deadline",
     "solve_goal_ik",
 ]
 
@@ -208,3 +214,12 @@ def solve_goal_ik(world: World, query: PlanQuery, n_ik: int, timing: dict[str, f
     timing["ik"] = time.perf_counter() - t0
     info["ik_solutions"] = len(goals)
     return goals
+
+
+def search_deadline(query: PlanQuery, now: float) -> float:
+    """The deadline (``time.perf_counter()`` s) a planner's search keeps at ``now``: the
+    query's, less :data:`CERTIFY_RESERVE` of the time left (at most
+    :data:`CERTIFY_RESERVE_MAX_S`), so that the certification of what it finds still ends by
+    the query's deadline."""
+    left = query.deadline - now
+    return query.deadline - min(CERTIFY_RESERVE * left, CERTIFY_RESERVE_MAX_S)

@@ -45,7 +45,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from chekhov.errors import ChekhovError
-from chekhov.planners.base import PlannerBase, PlanResult, solve_goal_ik
+from chekhov.planners.base import (
+    CERTIFY_RESERVE,
+    PlannerBase,
+    PlanResult,
+    search_deadline,
+    solve_goal_ik,
+)
 from chekhov.planners.query import PlanQuery
 from chekhov.planners.status import PlanStatus
 from chekhov.world import World
@@ -56,9 +62,6 @@ PLANNERS = ("RRTConnect", "RRT", "RRTstar", "PRMstar")
 _ALIASES = {"rrtconnect": "RRTConnect", "rrt": "RRT", "rrtstar": "RRTstar", "rrt*": "RRTstar",
             "prmstar": "PRMstar", "prm*": "PRMstar"}
 OPTIMAL = frozenset({"RRTstar", "PRMstar"})
-CERTIFY_RESERVE = 0.1
-"""Share of the remaining time kept back from OMPL's solve for certifying the path."""
-CERTIFY_RESERVE_MAX_S = 0.05
 
 
 def _ompl() -> tuple[Any, Any, Any]:
@@ -177,7 +180,7 @@ class OmplPlanner(PlannerBase):
     def _plan(self, query: PlanQuery) -> PlanResult:
         """Plan for a checked query within its time limit (s, IK included)."""
         ob = self._ob
-        t0, q_start, time_limit_s = query.t0, query.q_start, query.time_limit_s
+        t0, q_start = query.t0, query.q_start
         robot = self.world.robot
         timing: dict[str, float] = {}
         info: dict[str, object] = {"planner": self.kind}
@@ -215,8 +218,7 @@ class OmplPlanner(PlannerBase):
         timing["setup"] = time.perf_counter() - t
         t = time.perf_counter()
         # leave time for the path's certification: an answer after the limit is a timeout
-        remaining = t0 + time_limit_s - t
-        remaining -= min(CERTIFY_RESERVE * remaining, CERTIFY_RESERVE_MAX_S)
+        remaining = search_deadline(query, t) - t
         status = planner.solve(max(remaining, 1e-6)) if remaining > 0 else None
         timing["solve"] = time.perf_counter() - t
         info["ompl_status"] = status.asString() if status is not None else "not run"

@@ -28,14 +28,13 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from chekhov._config_checks import in_unit_interval, int_at_least, positive
 from chekhov.collision.path_check import PathCertificate, motion_certified
 from chekhov.collision.route_check import route_decision
-from chekhov.errors import ChekhovError
-from chekhov.planners.base import PlannerBase, PlanResult, solve_goal_ik
-from chekhov.planners.ompl_planner import CERTIFY_RESERVE, CERTIFY_RESERVE_MAX_S
+from chekhov.planners.base import PlannerBase, PlanResult, search_deadline, solve_goal_ik
 from chekhov.planners.query import PlanQuery
 from chekhov.planners.status import PlanStatus
-from chekhov.roadmap.trees import rrt_connect
+from chekhov.roadmap.trees import fast_motion, rrt_connect
 from chekhov.world import World
 
 Array = NDArray[np.float64]
@@ -63,17 +62,11 @@ class DeterministicRRTConnectConfig:
     seed: int = 0
 
     def __post_init__(self) -> None:
-        for name in ("max_nodes", "n_ik"):
-            v = getattr(self, name)
-            if not (isinstance(v, int) and v >= 1):
-                raise ChekhovError(f"DeterministicRRTConnectConfig.{name}: must be an integer "
-                                   f">= 1, got {v!r}")
-        if not 0 < self.range_fraction <= 1:
-            raise ChekhovError(f"DeterministicRRTConnectConfig.range_fraction: must be in (0, 1], "
-                               f"got {self.range_fraction!r}")
-        if not self.resolution > 0:
-            raise ChekhovError(f"DeterministicRRTConnectConfig.resolution: must be > 0, got "
-                               f"{self.resolution!r}")
+        owner = type(self).__name__
+        int_at_least(owner, "max_nodes", self.max_nodes, 1)
+        int_at_least(owner, "n_ik", self.n_ik, 1)
+        in_unit_interval(owner, "range_fraction", self.range_fraction)
+        positive(owner, "resolution", self.resolution)
 
 
 class DeterministicRRTConnect(PlannerBase):
@@ -87,12 +80,8 @@ class DeterministicRRTConnect(PlannerBase):
         self.name = "RRTConnect(deterministic)"
         robot = world.robot
         self.step = self.config.range_fraction * float(np.linalg.norm(robot.upper - robot.lower))
+        self._free = fast_motion(world.fast, self.config.resolution)
         world.goal_ik.warmup()
-
-    def _free(self, q0: Array, q1: Array) -> bool:
-        fast = self.world.fast
-        return bool(fast.valid(q1[None])[0] and fast.motions_valid(
-            q0[None], q1[None], self.config.resolution)[0])
 
     def _plan(self, query: PlanQuery) -> PlanResult:
         cfg, robot = self.config, self.world.robot
@@ -109,9 +98,7 @@ class DeterministicRRTConnect(PlannerBase):
             return done(PlanStatus.TIMEOUT if query.expired() else PlanStatus.NO_IK)
         rng = np.random.default_rng(cfg.seed)
         t = time.perf_counter()
-        # as OMPL's planners here: a share of the time left is kept for the certification
-        left = query.deadline - t
-        deadline = query.deadline - min(CERTIFY_RESERVE * left, CERTIFY_RESERVE_MAX_S)
+        deadline = search_deadline(query, t)    # as OMPL's planners here
         w = self.world
 
         def certified(q0: Array, q1: Array) -> bool:

@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 from chekhov.roadmap.config import RepairConfig
 from chekhov.roadmap.graph import Roadmap
 from chekhov.roadmap.nearest import NearestNodes
-from chekhov.roadmap.trees import BiTrees
+from chekhov.roadmap.trees import BiTrees, fast_motion
 from chekhov.roadmap.validity import RoadmapValidity
 from chekhov.world import World
 
@@ -76,6 +76,7 @@ class TreeRepair:
         self.config = config if config is not None else RepairConfig()
         robot = world.robot
         self.step = self.config.range_fraction * float(np.linalg.norm(robot.upper - robot.lower))
+        self.free = fast_motion(world.fast, resolution)
         self._nodes = NearestNodes(roadmap.nodes)
 
     def search(self, q_start: Array, Q_goal: Array, deadline: float) -> RepairResult:
@@ -90,12 +91,6 @@ class TreeRepair:
                              "route_tries": len(run.tried)})
 
     # --- motions ------------------------------------------------------------------------
-    def free(self, q0: Array, q1: Array) -> bool:
-        """q1 is free and the straight motion q0 → q1 too (q0 known free)."""
-        fast = self.world.fast
-        return bool(fast.valid(q1[None])[0] and fast.motions_valid(
-            q0[None], q1[None], self.resolution)[0])
-
     def attachments(self, q: Array) -> list[int]:
         """Roadmap nodes, valid now, with a free straight motion from q (nearest first)."""
         k = min(self.config.attach_candidates, self.roadmap.n_nodes)

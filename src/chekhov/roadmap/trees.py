@@ -20,13 +20,25 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
+if TYPE_CHECKING:
+    from chekhov.collision.fast import FastChecker
+
 Array = NDArray[np.float64]
 MotionFn = Callable[[Array, Array], bool]
 """(q0 known free, q1) → q1 and the straight motion q0 → q1 are free."""
+
+
+def fast_motion(fast: FastChecker, resolution: float) -> MotionFn:
+    """The fast checker's :data:`MotionFn`: q1, and the motion at every ``resolution`` rad."""
+    def free(q0: Array, q1: Array) -> bool:
+        return bool(fast.valid(q1[None])[0] and fast.motions_valid(
+            q0[None], q1[None], resolution)[0])
+    return free
 
 
 class Tree:
