@@ -26,7 +26,7 @@ and in 4.9 (365 and 432; shelf_boxes 1759 → 1134, kitchen 1854 → 1142, panda
 new alternating, several times. Tried and not kept for these long segments: carrying the
 certificates from one segment to the next (more visits: they then run out one at a time
 instead of together at each segment's start; 2026-11-29, with runs of segments as the timed
-arcs now use them (``dense_path.run_end``) but uncapped: visits 971 → 1814 a path on
+arcs now use them (``walk_runs.run_end``) but uncapped: visits 971 → 1814 a path on
 shelf_boxes, 232 → 716 on tabletop_container, the walk 4-11% slower) and, with it,
 renewing those about to run out whenever one configuration is looked at (26% fewer visits,
 the same time: each visit then renews more); one walk call for the whole path instead of 8

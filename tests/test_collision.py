@@ -397,9 +397,9 @@ def test_dense_path_check_near_contact_equals_every_configuration(world_of, scen
     checking every configuration of densify(path, substeps) gives — also when the walk is cut
     into calls of a few configurations, each resumed where the last stopped. Every other
     path is an arc of short uneven segments at 6 substeps, as a timed trajectory's knots,
-    which the walk takes in runs of several segments (``dense_path.run_end``), its
+    which the walk takes in runs of several segments (``walk_runs.run_end``), its
     certificates held across the knots."""
-    from chekhov.collision import dense_path, validity
+    from chekhov.collision import dense_path, validity, walk_runs
     from chekhov.collision.exact import densify
 
     w = world_of(scene)
@@ -433,7 +433,7 @@ def test_dense_path_check_near_contact_equals_every_configuration(world_of, scen
             bend *= 0.02 / np.linalg.norm(bend)
             P = lo + u[:, None] * side + (4.0 * u * (1.0 - u))[:, None] * bend
             substeps = 6
-            joined += dense_path.run_end(P, 0, len(P) - 1, substeps + 1, span) > 1
+            joined += walk_runs.run_end(P, 0, len(P) - 1, substeps + 1, span) > 1
         else:
             P = lo + np.linspace(0.0, 1.0, 6)[:, None] * side
             substeps = 100

@@ -41,7 +41,7 @@ half-steps on either side of it:
 With no motion bound (a joint that is not revolute) the coal checks are the boolean ones on
 the samples alone. The fast checker walks :data:`CHUNK_SEGMENTS` segments at a time with
 clearance certificates (``dense_path.py``); near the deadline a compiled call looks at as
-many configurations as half the time left allows (``dense_path.visit_budget``), and the clock
+many configurations as half the time left allows (``walk_runs.visit_budget``), and the clock
 is looked at between calls.
 A passed check returns a :class:`PathCertificate` bound to the path's bytes, the substeps
 and the checkers' obstacle version, so that a later certification of the very same path in
@@ -60,7 +60,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from chekhov.collision import dense_path
+from chekhov.collision import dense_path, walk_runs
 from chekhov.collision.codes import NONE
 from chekhov.collision.exact import ExactChecker, densify
 from chekhov.collision.fast import FastChecker
@@ -75,7 +75,7 @@ its certificates start afresh; near the deadline the calls are cut shorter by th
 budget). 8 against 2, in one process: the first answer's median 9.3 → 7.6 ms (kitchen
 tasks), 5.5 → 4.7 (panda_cage), 3.5 → 3.2 (tabletop_pole); the exact check of a timed
 answer's arcs 21.6 → 16.0, 12.4 → 9.1, 13.7 → 8.5 ms. 64 against 8, with the walk's runs of
-short segments (``dense_path.run_end``), alternating in one process on the arcs of 40 task
+short segments (``walk_runs.run_end``), alternating in one process on the arcs of 40 task
 cases' timed answers: 0.287 → 0.209 ms a run of arcs (shelf_boxes), 0.89 → 0.79
 (panda_cage); the first answers' certification (``benchmarks/certify_walk.py``) 2-7% less
 on the mean (shelf_boxes, panda_cage, kitchen, twice each)."""
@@ -180,7 +180,7 @@ def exact_path_decision(fast: FastChecker, exact: ExactChecker, path: Array,
     ``time.perf_counter()`` value, s) passed before the decision.
 
     The fast checker walks :data:`CHUNK_SEGMENTS` segments at a time with clearance
-    certificates (near the deadline in calls of ``dense_path.visit_budget`` configurations);
+    certificates (near the deadline in calls of ``walk_runs.visit_budget`` configurations);
     from each configuration it flags, coal checks the next :data:`EXACT_WINDOW`
     configurations of that segment, and the fast walk resumes after them (or after those
     coal's own certificates cover).
@@ -333,10 +333,10 @@ class _Coal:
     def first_alarm(self, fast: FastChecker, P: Array, start: int) -> int | None:
         """Index (>= ``start``) into ``densify(P, self.substeps)`` of the first configuration
         the screen flags, or None (``FastChecker.first_dense_collision`` with the margins):
-        in calls of ``dense_path.visit_budget`` configurations, the clock looked at between
+        in calls of ``walk_runs.visit_budget`` configurations, the clock looked at between
         them."""
         while True:
-            visits = dense_path.visit_budget(self.deadline - time.perf_counter())
+            visits = walk_runs.visit_budget(self.deadline - time.perf_counter())
             i, resume = fast.run_kernel(dense_path.first_dense_collision, P, self.substeps,
                                         start, visits, self.pad, self.grow)
             if resume < 0:
