@@ -343,23 +343,30 @@ class Evader:
         ``time.perf_counter()`` time) is past (one chunk at least). Of moving arms in
         collision-free random configurations whose stop ran into the static scene, 8%
         (tabletop_pole), 5% (panda_cage) and 13% (kitchen) had one."""
-        lim, robot = self.limits, self.world.robot
-        A = self.rng.uniform(-1.0, 1.0, (ESCAPE_TRIES, len(now.q))) * lim.acceleration
-        V = np.clip(now.qd + A * ESCAPE_S, -lim.velocity, lim.velocity)
-        Q = np.clip(now.q + 0.5 * (now.qd + V) * ESCAPE_S, robot.lower, robot.upper)
         for c0 in range(0, ESCAPE_TRIES, DODGE_CHUNK):
             if c0 and past(deadline):
                 return
-            moves = []
-            for q, v in zip(Q[c0:c0 + DODGE_CHUNK], V[c0:c0 + DODGE_CHUNK], strict=True):
-                piece = ruckig_piece(now, State(q, v, np.zeros_like(q)), t0, lim, "dodge",
-                                     self.bounds)
-                if piece is not None:
-                    end = piece.sample(piece.t_end - piece.t_start)
-                    stop = stop_from(end, piece.t_end, lim, self.bounds)
-                    moves.append(Motion((piece, *stop.pieces)))
+            moves = self.escape_moves(now, t0, DODGE_CHUNK)
             safe = self.safe_in_time(moves, t0, 0.0)
             yield from (m for m, ok in zip(moves, safe, strict=True) if ok)
+
+    def escape_moves(self, now: State, t0: float, n: int) -> list[Motion]:
+        """``n`` escapes from ``now`` at clock time t0 (s), unjudged: Ruckig moves to the
+        state that a constant acceleration drawn at random (each joint up to its limit)
+        reaches :data:`ESCAPE_S` later, then a stop (those Ruckig makes)."""
+        lim, robot = self.limits, self.world.robot
+        A = self.rng.uniform(-1.0, 1.0, (n, len(now.q))) * lim.acceleration
+        V = np.clip(now.qd + A * ESCAPE_S, -lim.velocity, lim.velocity)
+        Q = np.clip(now.q + 0.5 * (now.qd + V) * ESCAPE_S, robot.lower, robot.upper)
+        moves = []
+        for q, v in zip(Q, V, strict=True):
+            piece = ruckig_piece(now, State(q, v, np.zeros_like(q)), t0, lim, "dodge",
+                                 self.bounds)
+            if piece is not None:
+                end = piece.sample(piece.t_end - piece.t_start)
+                stop = stop_from(end, piece.t_end, lim, self.bounds)
+                moves.append(Motion((piece, *stop.pieces)))
+        return moves
 
     def hold_short(self, motion: Motion, t0: float, t_hit: float) -> Motion | None:
         """A brake along ``motion`` (:func:`~chekhov.execute.motion.brake_along`) that starts

@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 
 from chekhov._heap import settle_heap
 from chekhov.execute.checks import MotionChecks
+from chekhov.execute.escape import Escaper
 from chekhov.execute.evade import Evader, EvadeSettings, past
 from chekhov.execute.interface import Command, Counters, ExecutorConfig, Observation, Reaction
 from chekhov.execute.motion import (
@@ -67,6 +68,10 @@ it from there was a velocity step (3% of an acceleration limit in a react run)."
 ON_TIME_MARGIN_S = 0.002
 """s of wall time a step takes after its dodge (:meth:`Executor._on_time`)."""
 
+LATER_S = 0.05
+"""s: an escape replaces the motion when it meets the predicted obstacles this much later."""
+ESCAPE_COST_S = 0.015
+"""s of wall time an escape search is expected to take (its escape starts after it)."""
 MOVING_ASIDE = ("dodge", "swerve")
 """The kinds of motion piece that move the arm out of the way (no plan, no brake)."""
 
@@ -115,6 +120,7 @@ class Executor:
         settings = EvadeSettings(c.horizon_s, c.margin_m, c.check_dt_s, c.obstacle_speed_m_s)
         self.evader = Evader(world, self.tracks, settings, self.limits, self.bounds)
         self.swerver = Swerver(self.evader)
+        self.escaper = Escaper(self.evader)
 
     # --- the tick ---------------------------------------------------------------------
     def step(self, obs: Observation) -> Command:
@@ -348,6 +354,8 @@ class Executor:
         else:
             if brake is None and moving and kind in MOVING_ASIDE:
                 brake = self._stop_if_safer(t)
+            if self._escape(t, brake):
+                return
             if brake is None:
                 return      # nothing new: a plan asked for stays asked for
             self.counters.safe_stops += 1
@@ -355,6 +363,27 @@ class Executor:
         self._need = "obstacle"
         self._install(brake)
         self._react(t_r)
+
+    def _escape(self, t: float, brake: Motion | None) -> bool:
+        """The last resort of :meth:`_evade`: the motion (braking from the next command when
+        ``brake``) meets the predicted obstacles and no dodge is safe of them — the escape
+        that meets them latest (:meth:`Escaper.latest
+        <chekhov.execute.escape.Escaper.latest>`), from the tick this step's answer will be
+        in by, installed when that is :data:`LATER_S` later than the motion's."""
+        assert self.motion is not None
+        dt, t_r = self.config.control_dt_s, self._t_react(t)
+        current = self.motion if brake is None else self.motion.then(brake)
+        t_e = max(t_r, t + dt * math.ceil(
+            (self._spent() + ESCAPE_COST_S * self.wall_scale) / dt - 1e-9))
+        move, t_move, t_now = self.escaper.latest(current, t_r, t_e, self._deadline)
+        if move is None or t_move < t_now + LATER_S:
+            return False
+        self._cancel()
+        self._need = "obstacle"
+        self._install(move if brake is None else brake.then(move))
+        self.counters.dodges += 1
+        self._react(t_r if brake is not None else move.t_start)
+        return True
 
     def _stop_if_safer(self, t: float) -> Motion | None:
         """A dodge no longer safe and none other found: a stop from the next command (each
