@@ -101,6 +101,12 @@ def test_the_latest_meeting_is_each_samples_check_in_its_window(world, limits):
     finite = [t for t in expected if np.isfinite(t)]
     assert len(finite) >= 3 and len(set(finite)) >= 2        # the search had work to do
     assert escaper._latest(moves, t0, packs, edges, beat=np.inf) == (-1, np.inf)
+    for move, t in zip(moves, expected, strict=True):     # each one's own time, to the step
+        assert escaper._latest([move], t0, packs, edges) == ((0, t) if t > -np.inf
+                                                             else (-1, -np.inf))
+    meeting = [m for m, t in zip(moves, expected, strict=True) if np.isfinite(t)]
+    i, t_i = escaper._latest(meeting, t0, packs, edges)
+    assert t_i == max(t for t in expected if np.isfinite(t))
     outside = [m for m, t in zip(moves, expected, strict=True) if t == -np.inf]
     assert outside     # an escape leaving the limits is never taken, however late it meets
     assert escaper._latest(outside, t0, packs, edges) == (-1, -np.inf)
