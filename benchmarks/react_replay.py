@@ -5,8 +5,10 @@ executive on the same disturbances. One JSON object per episode and repetition.
         [--search-budget-ms MS|none]
 
 An episode's script (kick, goal change, forearm) is timed by an undisturbed run of the
-planner, whose wall time moves replies from tick to tick, so two ``chekhov react`` runs can
-differ by a few ms in every script (the same seed). Here the scripts are made once and kept in
+planner; until 2026-12-01 that run charged its compute, whose wall time moved replies from
+tick to tick, so two ``chekhov react`` runs could differ by a few ms in every script (the same
+seed); now it runs on the free clock, and the scripts are those of ``chekhov react``. Here
+the scripts are made once and kept in
 ``--scripts`` (a pickle: load only files you made; written atomically), then replayed with
 whatever ``chekhov`` is imported — e.g. ``PYTHONPATH=/path/to/other/checkout/src``.
 
@@ -43,13 +45,19 @@ try:
     from chekhov.execute.benchmark import scripted_episode
 except ImportError:      # a checkout from before 2026-11-26, to compare against
     from chekhov.execute.benchmark import _episode as scripted_episode  # type: ignore
+try:
+    from chekhov.execute.benchmark import episode_script
+except ImportError:      # a checkout from before 2026-12-01 (its scripts from a charged run)
+    episode_script = None  # type: ignore[assignment]
 
 
 def scripts_for(world: World, episodes: list[int], config: ReactConfig,
-                path: Path | None) -> dict[int, tuple[EpisodeScript, float]]:
-    """Each episode's script and undisturbed duration (s): read from ``path`` when it holds
-    them, else made (and written there)."""
-    kept: dict[int, tuple[EpisodeScript, float]] = {}
+                path: Path | None) -> dict[int, tuple[EpisodeScript, float | None]]:
+    """Each episode's script and undisturbed duration (s; None: the replay runs the task
+    alone for it): read from ``path`` when it holds them, else made (and written there) —
+    since 2026-12-01 as ``chekhov react`` makes them, on the clock that does not charge
+    compute, so a run's collided episode replays on its own script."""
+    kept: dict[int, tuple[EpisodeScript, float | None]] = {}
     if path is not None and path.exists():
         try:
             kept = pickle.loads(path.read_bytes())
@@ -59,6 +67,12 @@ def scripts_for(world: World, episodes: list[int], config: ReactConfig,
     planner = executive_planner(config.planners[0], world)
     for i in episodes:
         if i in kept:
+            continue
+        if episode_script is not None:    # the same script as chekhov react's (free clock)
+            script = episode_script(world, planner, config, i)
+            if script is None:
+                raise SystemExit(f"episode {i}: the undisturbed run does not reach its goal")
+            kept[i] = (script, None)
             continue
         q0, goal = start_and_goal(world, config.seed, i)
         rec = run_one(world, planner, EpisodeScript(i, q0, goal, ""), config.undisturbed_limit_s,

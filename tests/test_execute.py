@@ -1164,6 +1164,28 @@ def test_react_command_prints_the_keys(capsys):
     assert row["compute_charged"] is True and row["compute_scale"] == 1.0
 
 
+def test_an_episodes_script_is_the_same_in_every_run(world, planner):
+    """``chekhov react`` times each episode's disturbances on an undisturbed run whose clock
+    charges no compute and whose plans come one budget after they are asked for: two makings
+    of the same episode give the same script, whatever the planner's wall time was — and the
+    first plan's reply is taken on that budget's tick, not before."""
+    from chekhov.execute.benchmark import episode_script
+    config = ReactConfig(seed=0)
+    a = episode_script(world, planner, config, 0)
+    b = episode_script(world, planner, config, 0)
+    assert a is not None and b is not None
+    assert [k.t for k in a.kicks] == [k.t for k in b.kicks]
+    assert all(np.array_equal(x.dq, y.dq) for x, y in zip(a.kicks, b.kicks, strict=True))
+    assert [g.t for g in a.goal_changes] == [g.t for g in b.goal_changes]
+    assert [(o.t_start, tuple(o.p_start), tuple(o.p_end)) for o in a.obstacles] == \
+        [(o.t_start, tuple(o.p_start), tuple(o.p_end)) for o in b.obstacles]
+    q0, goal = start_and_goal(world, 0, 0)
+    rec = run_one(world, planner, EpisodeScript(0, q0, goal, ""), 20.0, CONFIG,
+                  reply_after_s=0.05)
+    moving = np.flatnonzero(np.abs(rec.qd).max(axis=1) > 0)
+    assert rec.reached and rec.times[moving[0]] >= 0.05 - 1e-9
+
+
 @pytest.mark.parametrize("argv, where", [
     (["--episodes", "0"], "--episodes"),
     (["--scenes", "no_such_scene"], "--scenes"),

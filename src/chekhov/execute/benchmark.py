@@ -3,9 +3,11 @@ episodes with a forearm sweeping across, a goal change and a kick each
 (:mod:`~chekhov.execute.script`), run on the simulated clock, judged after the fact
 (:mod:`~chekhov.execute.evaluate`), summed up in one JSON-able dict per scene and planner.
 
-Each episode first runs undisturbed (the same start, goal and executive, nothing happening):
-its duration times the script. The scripts come from the first planner's undisturbed runs,
-so every planner gets the same episodes. Each planner then runs the episode's task alone —
+Each episode first runs undisturbed (the same start, goal and executive, nothing happening),
+on the clock that does not charge compute: its duration times the script
+(:func:`episode_script`), so every run on any machine gets the same episodes. The scripts
+come from the first planner's undisturbed runs, so every planner gets the same episodes.
+Each planner then runs the episode's task alone (on the run's own clock) —
 its goal changes, no forearm, no kick (:meth:`EpisodeScript.task_only`) — and that run's
 duration is the reference of the episode's deadline and of ``time_to_goal_ratio`` (the goal
 change can send the arm much farther than the first goal: a deadline from the first goal's
@@ -93,9 +95,9 @@ def checking_world(world: World) -> World:
 
 
 def run_one(world: World, planner: Planner, script: EpisodeScript, deadline_s: float,
-            config: ReactConfig) -> EpisodeRecord:
-    """Run one script with a fresh executive."""
-    worker = InlineWorker(world, planner, config.executor.timing)
+            config: ReactConfig, *, reply_after_s: float | None = None) -> EpisodeRecord:
+    """Run one script with a fresh executive (``reply_after_s``: see :class:`InlineWorker`)."""
+    worker = InlineWorker(world, planner, config.executor.timing, reply_after_s=reply_after_s)
     executor = Executor(checking_world(world), worker, script.goal, config.executor,
                         wall_scale=config.sim.compute_scale)
     executor.warmup()
@@ -106,32 +108,40 @@ def react_scene(world: World, config: ReactConfig,
                 progress: Callable[[str], None] | None = None) -> list[dict[str, object]]:
     """Every episode of ``config`` in ``world`` for each planner; one summary per planner."""
     planners = [executive_planner(n, world) for n in config.planners]
-    scripts: list[tuple[EpisodeScript, float] | None] = []
-    for i in range(config.episodes):
-        q0, goal = start_and_goal(world, config.seed, i)
-        plain = EpisodeScript(i, q0, goal, "")
-        rec = run_one(world, planners[0], plain, config.undisturbed_limit_s, config)
-        if rec.t_reached is None:
-            scripts.append(None)
-            continue
-        ee = world.robot.compute_ee_poses(rec.q)[:, :3, 3]
-        scripts.append((make_script(world, config.seed, i, rec.t_reached, ee, rec.q),
-                        rec.t_reached))
+    scripts = [episode_script(world, planners[0], config, i) for i in range(config.episodes)]
     out = []
     for planner in planners:
         results: list[EpisodeResult | None] = []
-        for i, entry in enumerate(scripts):
-            if entry is None:
+        for i, script in enumerate(scripts):
+            if script is None:
                 results.append(None)
                 continue
-            # the first planner's undisturbed run is the one that timed the script
-            reference = entry[1] if planner is planners[0] else None
-            results.append(scripted_episode(world, planner, entry[0], config, reference))
+            results.append(scripted_episode(world, planner, script, config))
             if progress is not None:
                 progress(f"{world.scene.name} {planner.name} episode {i + 1}/"
                          f"{config.episodes}")
         out.append(summarize(world.scene.name, planner.name, results, config))
     return out
+
+
+def episode_script(world: World, planner: Planner, config: ReactConfig, index: int
+                   ) -> EpisodeScript | None:
+    """Episode ``index`` of ``config.seed``'s stream, its disturbances timed by an undisturbed
+    run of ``planner`` on a clock that does not charge compute, where every plan's reply
+    comes one planning budget after it is asked for — so that every run, on any machine, gets
+    the same scripts: on the charged clock a tick's difference in the run's duration moved
+    the forearm, and an episode that collided in a run could not be replayed. None when that
+    run does not reach the goal (unreachable)."""
+    q0, goal = start_and_goal(world, config.seed, index)
+    free = replace(config, sim=replace(config.sim, charge_compute=False),
+                   executor=replace(config.executor, search_budget_s=None))
+    rec = run_one(world, planner, EpisodeScript(index, q0, goal, ""),
+                  config.undisturbed_limit_s, free,
+                  reply_after_s=config.executor.planning_budget_s)
+    if rec.t_reached is None:
+        return None
+    ee = world.robot.compute_ee_poses(rec.q)[:, :3, 3]
+    return make_script(world, config.seed, index, rec.t_reached, ee, rec.q)
 
 
 def scripted_episode(world: World, planner: Planner, script: EpisodeScript,

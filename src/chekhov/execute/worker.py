@@ -135,11 +135,14 @@ class Worker(Protocol):
 
 
 class InlineWorker:
-    """Plans at submit time; the reply comes at ``t_request`` + its measured wall time."""
+    """Plans at submit time; the reply comes at ``t_request`` + its measured wall time, or
+    + ``reply_after_s`` (s) when that is given (a clock on which every run is the same)."""
 
-    def __init__(self, world: World, planner: Planner, timing: TimingConfig) -> None:
+    def __init__(self, world: World, planner: Planner, timing: TimingConfig, *,
+                 reply_after_s: float | None = None) -> None:
         _same_world(world, planner)
         self.world, self.planner, self.timing = world, planner, timing
+        self.reply_after_s = reply_after_s
         self._reply: PlanReply | None = None
 
     def submit(self, request: PlanRequest) -> None:
@@ -147,7 +150,10 @@ class InlineWorker:
 
     def poll(self, now: float) -> PlanReply | None:
         r = self._reply
-        if r is None or now < r.request.t_request + r.wall_s:
+        if r is None:
+            return None
+        after = r.wall_s if self.reply_after_s is None else self.reply_after_s
+        if now < r.request.t_request + after:
             return None
         self._reply = None
         return r
