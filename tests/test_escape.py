@@ -55,10 +55,10 @@ def _escaper(world, tracks, limits, seed=5):
 
 
 def _first_meeting(world, escaper, motion, t0):
-    """The first check step (s) from t0 (or the motion's start) to the horizon at which the
-    motion meets the sweep of the fine window holding it — each sample checked on its own,
-    the window packed here (inf: none); -inf when it leaves the joint limits at any step to
-    its end."""
+    """The first check step (s) from t0 (or the motion's start) to its end at which the
+    motion meets the sweep of the fine window holding it (after the horizon, the last one) —
+    each sample checked on its own, the window packed here (inf: none); -inf when it leaves
+    the joint limits at any step."""
     from chekhov.execute.obstacles import predicted_primitives
     c = escaper.evader.settings
     edges = np.arange(0.0, c.horizon_s + 1e-9, FINE_WINDOW_S)
@@ -67,8 +67,6 @@ def _first_meeting(world, escaper, motion, t0):
     if not world.robot.within_limits(Q).all():
         return -np.inf
     for t, q in zip(ts, Q, strict=True):
-        if t > t0 + edges[-1] + 1e-9:
-            break
         k = min(max(int(np.searchsorted(edges, t - t0 + 1e-9, side="right")) - 1, 0),
                 len(edges) - 2)
         packed = world.fast.packed_with(predicted_primitives(

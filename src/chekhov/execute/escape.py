@@ -44,7 +44,8 @@ class Escaper:
                deadline: float | None = None) -> tuple[Motion | None, float, float]:
         """When ``motion`` (from clock time t0, s; within the joint limits) meets the
         obstacles' predicted motion (no margin, windows of :data:`FINE_WINDOW_S` from t0)
-        after t_e (s) and within the horizon: of escapes from its state at t_e
+        after t_e (s), to its end (after the horizon, against the last window's sweep and
+        the static scene): of escapes from its state at t_e
         (:meth:`Evader.escape_moves <chekhov.execute.evade.Evader.escape_moves>`, made
         :data:`ESCAPE_CHUNK` at a time until one never meets it, :data:`ESCAPE_TRIES` at
         most, or ``deadline`` — a ``time.perf_counter()`` time — is past), the one within the
@@ -87,9 +88,10 @@ class Escaper:
     def _latest(self, motions: list[Motion], t0: float, packs: list[PackedWorld],
                 edges: Array, beat: float = -np.inf) -> tuple[int, float]:
         """The index of the one of ``motions`` (sampled from t0 or their start, s) that
-        meets its window's sweep (``packs``, window ``edges`` s from t0) latest within the
-        horizon, when later than ``beat`` (s; else -1), and that time (s; inf: never); a
-        motion that leaves the joint limits at any time is never taken (its time is -inf).
+        meets its window's sweep (``packs``, window ``edges`` s from t0; after the horizon
+        the last window's, which holds the static scene too) latest, when later than
+        ``beat`` (s; else -1), and that time (s; inf: never, to the motion's end); a motion
+        that leaves the joint limits at any time is never taken (its time is -inf).
         Every :data:`COARSE`-th sample is checked first; then the motions, latest first by
         that, on all their samples before it, until no later one can beat the best."""
         if not motions:
@@ -99,11 +101,9 @@ class Escaper:
                                        ev.settings.check_dt_s) for m in motions])
         win = np.clip(np.searchsorted(edges, flat.t - t0 + 1e-9, side="right") - 1,
                       0, len(packs) - 1)
-        near = flat.t <= t0 + edges[-1] + 1e-9
 
         def first_bad(rows: NDArray[np.int64]) -> Array:
             """Per motion, the first time (s) among ``rows`` that is bad (inf: none)."""
-            rows = rows[near[rows]]
             bad = np.zeros(len(rows), dtype=bool)
             for w in np.unique(win[rows]):
                 sel = win[rows] == w
