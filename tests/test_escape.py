@@ -91,7 +91,7 @@ def test_the_latest_meeting_is_each_samples_check_in_its_window(world, limits):
     moves = escaper.evader.escape_moves(now, t0, 24)
     c = escaper.evader.settings
     edges = np.arange(0.0, c.horizon_s + 1e-9, FINE_WINDOW_S)
-    packs = escaper._windows(t0, edges)
+    packs = escaper.evader.windows(t0, 0.0, FINE_WINDOW_S)
     expected = [_first_meeting(world, escaper, m, t0) for m in moves]
     i, t_i = escaper._latest(moves, t0, packs, edges)
     assert t_i == max(expected)

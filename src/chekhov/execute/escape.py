@@ -13,15 +13,20 @@ Units: s, rad, m.
 
 from __future__ import annotations
 
-import itertools
-
 import numpy as np
 from numpy.typing import NDArray
 
 from chekhov.collision.packed import PackedWorld
-from chekhov.execute.evade import COARSE, DODGE_CHUNK, ESCAPE_TRIES, Evader, Samples, past
+from chekhov.execute.evade import (
+    COARSE,
+    DODGE_CHUNK,
+    ESCAPE_TRIES,
+    Evader,
+    Samples,
+    past,
+    window_edges,
+)
 from chekhov.execute.motion import Motion
-from chekhov.execute.obstacles import predicted_primitives
 
 Array = NDArray[np.float64]
 
@@ -38,7 +43,6 @@ class Escaper:
 
     def __init__(self, evader: Evader) -> None:
         self.evader = evader
-        self._packs: tuple[object, float, list[PackedWorld]] | None = None
 
     def latest(self, motion: Motion, t0: float, t_e: float,
                deadline: float | None = None) -> tuple[Motion | None, float, float]:
@@ -52,8 +56,8 @@ class Escaper:
         limits to its end that meets it latest. Returns (that escape, from t_e, or None; the
         time it meets it; the time ``motion`` does), s, inf: never, -inf: ``motion`` leaves
         the limits."""
-        edges = np.arange(0.0, self.evader.settings.horizon_s + 1e-9, FINE_WINDOW_S)
-        packs = self._windows(t0, edges)
+        edges = window_edges(self.evader.settings.horizon_s, FINE_WINDOW_S)
+        packs = self.evader.windows(t0, 0.0, FINE_WINDOW_S)
         _, t_motion = self._latest([motion], t0, packs, edges)
         if not t_e < t_motion < np.inf:
             return None, -np.inf, t_motion
@@ -70,20 +74,6 @@ class Escaper:
             if t_best == np.inf:
                 break
         return best, t_best, t_motion
-
-    def _windows(self, t0: float, edges: Array) -> list[PackedWorld]:
-        """The fast checker's packed world with each window's (``edges``, s from t0)
-        predicted sweep, no margin; kept for the same t0 until the tracks change."""
-        ev = self.evader
-        if self._packs is not None and self._packs[0] is ev.tracks.tracks and \
-                self._packs[1] == t0:
-            return self._packs[2]
-        c, fast = ev.settings, ev.world.fast
-        packs = [fast.packed_with(predicted_primitives(
-            ev.tracks, t0 + a, b - a, 0.0, speed_bound_m_s=c.obstacle_speed_m_s))
-            for a, b in itertools.pairwise(edges)]
-        self._packs = (ev.tracks.tracks, t0, packs)
-        return packs
 
     def _latest(self, motions: list[Motion], t0: float, packs: list[PackedWorld],
                 edges: Array, beat: float = -np.inf) -> tuple[int, float]:

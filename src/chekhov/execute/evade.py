@@ -80,9 +80,12 @@ ESCAPE_S = 0.3
 """s, how long an escape follows its acceleration before it stops."""
 
 
-def window_edges(horizon_s: float) -> Array:
+def window_edges(horizon_s: float, window_s: float | None = None) -> Array:
     """s from a window set's start: 0, :data:`FIRST_WINDOW_S`, then every :data:`WINDOW_S`
-    to the horizon (at least one window)."""
+    to the horizon (at least one window); with ``window_s`` (s), every ``window_s`` from 0
+    to the horizon instead."""
+    if window_s is not None:
+        return np.arange(0.0, horizon_s + 1e-9, window_s)
     rest = np.arange(WINDOW_S, horizon_s + WINDOW_S - 1e-9, WINDOW_S)
     return np.concatenate([[0.0], [min(FIRST_WINDOW_S, rest[0])], rest[rest > FIRST_WINDOW_S]])
 
@@ -138,30 +141,32 @@ class Evader:
         self.world, self.tracks, self.settings = world, tracks, settings
         self.limits, self.bounds = limits, bounds
         self.rng = np.random.default_rng(seed)
-        self._windows: dict[tuple[float, float], list[PackedWorld]] = {}
+        self._windows: dict[tuple[float, float, float | None], list[PackedWorld]] = {}
         self._windows_of: object = None
         self._cut: _CutSearch | None = None
 
-    def windows(self, t0: float, margin_m: float | None = None) -> list[PackedWorld]:
-        """The fast checker's packed world holding each window's (:func:`window_edges`)
-        predicted sweep from t0 (s) over the horizon (inflated by ``margin_m``, m; the settings'
-        by default), for :meth:`safe_in_time`; the checker itself is not changed
-        (``FastChecker.packed_with``). Kept until the tracks change (a sensor frame): a
-        tick's reactions ask for the same windows several times."""
+    def windows(self, t0: float, margin_m: float | None = None,
+                window_s: float | None = None) -> list[PackedWorld]:
+        """The fast checker's packed world holding each window's (:func:`window_edges`, of
+        ``window_s`` when given) predicted sweep from t0 (s) over the horizon (inflated by
+        ``margin_m``, m; the settings' by default), for :meth:`safe_in_time`; the checker
+        itself is not changed (``FastChecker.packed_with``). Kept until the tracks change (a
+        sensor frame): a tick's reactions ask for the same windows several times."""
         c, fast = self.settings, self.world.fast
         margin = c.margin_m if margin_m is None else margin_m
         if self._windows_of is not self.tracks.tracks:
             self._windows, self._windows_of = {}, self.tracks.tracks
-        kept = self._windows.get((t0, margin))
+        key = (t0, margin, window_s)
+        kept = self._windows.get(key)
         if kept is not None:
             return kept
-        edges = window_edges(c.horizon_s)
+        edges = window_edges(c.horizon_s, window_s)
         packs = [fast.packed_with(predicted_primitives(self.tracks, t0 + a, b - a, margin,
                                                        speed_bound_m_s=c.obstacle_speed_m_s))
                  for a, b in itertools.pairwise(edges)]
         if len(self._windows) >= 8:
             self._windows.clear()
-        self._windows[(t0, margin)] = packs
+        self._windows[key] = packs
         return packs
 
     def safe_in_time(self, motions: list[Motion], t0: float,

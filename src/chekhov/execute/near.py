@@ -117,10 +117,7 @@ class NearConflicts:
             if brake is None:
                 return      # nothing new: a plan asked for stays asked for
             self.counters.safe_stops += 1
-        self._cancel()
-        self._need = "obstacle"
-        self._install(brake)
-        self._react(t_r)
+        self._answer(brake, t_r)
 
     def _escape(self, t: float, brake: Motion | None) -> bool:
         """The last resort of :meth:`_evade`: the motion (braking from the next command when
@@ -136,11 +133,8 @@ class NearConflicts:
         move, t_move, t_now = self.escaper.latest(current, t_r, t_e, self._deadline)
         if move is None or t_move < t_now + LATER_S:
             return False
-        self._cancel()
-        self._need = "obstacle"
-        self._install(move if brake is None else brake.then(move))
         self.counters.dodges += 1
-        self._react(t_r if brake is not None else move.t_start)
+        self._answer(move if brake is None else brake.then(move))   # the brake starts at t_r
         return True
 
     def _stop_if_safer(self, t: float) -> Motion | None:
@@ -167,12 +161,8 @@ class NearConflicts:
         if move is None:
             self._search_again = self.evader.cut_short
             return False
-        move = self._on_time(move, t, t_r)
-        self._cancel()
-        self._need = "obstacle"
-        self._install(move)
         self.counters.dodges += 1
-        self._react(move.t_start)
+        self._answer(self._on_time(move, t, t_r))
         return True
 
     def _on_time(self, move: Motion, t: float, t_r: float) -> Motion:
@@ -224,6 +214,15 @@ class NearConflicts:
         """s, this step's own compute so far (an inline worker's planning left out), times
         ``wall_scale``."""
         return self.wall_scale * (time.perf_counter() - self._wall0 - self._submit_wall)
+
+    def _answer(self, motion: Motion, t_reacted: float | None = None) -> None:
+        """Answer a conflict with ``motion`` (a brake, dodge or escape): the plan asked for
+        cancelled and a new one asked for, the motion installed, the open reactions answered
+        from ``t_reacted`` (s; the motion's start by default)."""
+        self._cancel()
+        self._need = "obstacle"
+        self._install(motion)
+        self._react(motion.t_start if t_reacted is None else t_reacted)
 
     def _install(self, motion: Motion) -> None:
         """Command ``motion`` from its start (the current motion up to there)."""
