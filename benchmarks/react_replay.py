@@ -2,7 +2,7 @@
 executive on the same disturbances. One JSON object per episode and repetition.
 
     python benchmarks/react_replay.py SCENE EPISODE [EPISODE ...] [--scripts FILE] [--reps N]
-        [--search-budget-ms MS|none]
+        [--search-budget-ms MS|none] [--compute-scale X]
 
 An episode's script (kick, goal change, forearm) is timed by an undisturbed run of the
 planner; until 2026-12-01 that run charged its compute, whose wall time moved replies from
@@ -13,7 +13,8 @@ the scripts are made once and kept in
 whatever ``chekhov`` is imported — e.g. ``PYTHONPATH=/path/to/other/checkout/src``.
 
 ``--search-budget-ms`` sets the executive's ``search_budget_s`` (``none``: no budget); the
-default is :class:`ExecutorConfig`'s.
+default is :class:`ExecutorConfig`'s. ``--compute-scale`` is ``chekhov react``'s (the executive's
+compute charged to the simulated clock × X: a slower machine); the scripts do not depend on it.
 
 Keys: scene, episode, rep, search_budget_ms, reached, t_reached_s, collision, first_contact_s,
 unavoidable, limit_violations, dodges, safe_stops, holds, replans, failures (plan failures by
@@ -40,6 +41,7 @@ from chekhov.errors import ChekhovError
 from chekhov.execute.benchmark import ReactConfig, executive_planner, run_one
 from chekhov.execute.interface import ExecutorConfig
 from chekhov.execute.script import EpisodeScript, make_script, start_and_goal
+from chekhov.execute.simulate import SimConfig
 
 try:
     from chekhov.execute.benchmark import scripted_episode
@@ -108,6 +110,7 @@ def main() -> None:
     ap.add_argument("--reps", type=int, default=1)
     ap.add_argument("--search-budget-ms", type=_budget_s, dest="search_budget_s",
                     default=ExecutorConfig().search_budget_s)
+    ap.add_argument("--compute-scale", type=float, default=SimConfig().compute_scale)
     args = ap.parse_args()
     try:
         world = World.load(args.scene)
@@ -115,7 +118,8 @@ def main() -> None:
         raise SystemExit(f"react_replay: scene {args.scene!r}: {e}") from e
     config = ReactConfig(episodes=max(args.episodes) + 1, seed=args.seed)
     config = replace(config, executor=replace(config.executor,
-                                              search_budget_s=args.search_budget_s))
+                                              search_budget_s=args.search_budget_s),
+                     sim=replace(config.sim, compute_scale=args.compute_scale))
     budget = config.executor.search_budget_s
     scripts = scripts_for(world, args.episodes, config, args.scripts)
     planner = executive_planner(config.planners[0], world)

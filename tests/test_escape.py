@@ -153,3 +153,54 @@ def test_no_escape_is_sought_for_a_motion_that_never_meets_the_obstacles_or_too_
         gone.update(obstacles_at((away,), stamp), stamp)
     move, t_move, t_stay = _escaper(world, gone, limits).latest(staying, t0, t0 + 0.02)
     assert move is None and t_stay == np.inf
+
+
+class _NoPlans:
+    """A worker that is never asked for a plan here (the escape is the step's own answer)."""
+
+    def submit(self, request):
+        raise AssertionError("no plan is asked for")
+
+    def poll(self, now):
+        return None
+
+    def cancel(self):
+        pass
+
+
+def test_an_overrunning_steps_escape_starts_where_the_loop_has_the_arm(world, limits):
+    """A kicked arm beside a ball flying at its elbow, in a step that has run past its tick:
+    until the step's answer is in, the loop commands the kick's immediate motion (here a
+    join on, away from where the stop goes), not the stop the step installed. The escape
+    must follow that motion to the tick the answer is in by and start from its state there
+    — one started from the installed stop had the arm off it at the next step (a lag), and
+    the lag's stop replaced it: tabletop_pole, seed 2, episode 1 at ``--compute-scale 2``
+    collided in 3 of 3 replays (2 of 4 after)."""
+    import time
+
+    from chekhov.execute.executor import Executor
+    from chekhov.execute.motion import Motion, ruckig_piece, stop_from
+    q0, ball, _, t0 = _ball_at_the_elbow(world)
+    _, goal = start_and_goal(world, 0, 0)
+    ex = Executor(world, _NoPlans(), goal, EXECUTOR)
+    for stamp in (t0 - 1 / 30, t0):
+        ex.tracks.update(obstacles_at((ball,), stamp), stamp)
+    bounds = Bounds(world.robot.lower, world.robot.upper)
+    z = np.zeros_like(q0)
+    kicked = State(q0, -0.1 * limits.velocity, z)
+    join = ruckig_piece(kicked, State(q0 - 0.1, z, z), t0, limits, "join", bounds)
+    assert join is not None
+    ex.immediate_motion = hold(q0, 0.0).then(Motion((join,)))       # what the loop commands
+    ex.motion = ex._step_motion = hold(q0, 0.0).then(stop_from(kicked, t0, limits, bounds))
+    ex._wall0, ex._submit_wall = time.perf_counter() - 0.03, 0.0      # 30 ms spent
+    assert ex._escape(t0, None)
+    dt = EXECUTOR.control_dt_s
+    t_e = min(p.t_start for p in ex.motion.pieces if p.kind == "dodge")
+    assert t_e >= t0 + 5 * dt - 1e-9        # 30 ms spent and the search's 15: 5 ticks on
+    for t in np.arange(t0, t_e + 1e-9, dt):
+        a, b = ex.motion.sample(float(t)), ex.immediate_motion.sample(float(t))
+        assert np.allclose(a.q, b.q, atol=1e-12) and np.allclose(a.qd, b.qd, atol=1e-12)
+    assert not np.allclose(ex.motion.sample(t_e + 5 * dt).q,
+                           ex.immediate_motion.sample(t_e + 5 * dt).q)
+    _, Q = ex.motion.positions(t0, ex.motion.t_end, 0.005)
+    assert world.robot.within_limits(Q).all() and np.allclose(ex.motion.end.qd, 0.0, atol=1e-9)

@@ -1091,14 +1091,15 @@ def test_a_dodge_found_after_its_tick_starts_where_the_arm_will_be(world, planne
     assert found is not None
     move = Motion((found,))
     ex._wall0 = time.perf_counter() - 0.025
-    again = ex._on_time(move, t, t + DT)
+    again, t_in = ex._on_time(move, t, t + DT)
     assert again is not move        # made again (and safe: nothing but the scene is there)
-    assert again.t_start == pytest.approx(t + 3 * DT)
+    assert t_in == pytest.approx(t + 3 * DT)
+    assert again.kind_at(t_in - 1e-6) == "plan" and again.kind_at(t_in + 1e-6) == "dodge"
     s_old, s_new = ex.motion.sample(t + 3 * DT), again.sample(t + 3 * DT)
     assert np.allclose(s_old.q, s_new.q) and np.allclose(s_old.qd, s_new.qd)
     assert np.allclose(again.end.q, aside)
     ex._wall0 = time.perf_counter()
-    assert ex._on_time(move, t, t + DT) is move
+    assert ex._on_time(move, t, t + DT) == (move, t + DT)
 
 
 def test_after_a_step_over_its_tick_any_offset_is_a_lag_to_join_back(world, planner, limits):

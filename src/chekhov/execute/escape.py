@@ -26,7 +26,7 @@ from chekhov.execute.evade import (
     past,
     window_edges,
 )
-from chekhov.execute.motion import Motion
+from chekhov.execute.motion import Motion, State
 
 Array = NDArray[np.float64]
 
@@ -45,7 +45,8 @@ class Escaper:
         self.evader = evader
 
     def latest(self, motion: Motion, t0: float, t_e: float,
-               deadline: float | None = None) -> tuple[Motion | None, float, float]:
+               deadline: float | None = None, *, start: State | None = None
+               ) -> tuple[Motion | None, float, float]:
         """When ``motion`` (from clock time t0, s; within the joint limits) meets the
         obstacles' predicted motion (no margin, windows of :data:`FINE_WINDOW_S` from t0)
         after t_e (s), to its end (after the horizon, against the last window's sweep and
@@ -61,7 +62,7 @@ class Escaper:
         _, t_motion = self._latest([motion], t0, packs, edges)
         if not t_e < t_motion < np.inf:
             return None, -np.inf, t_motion
-        now = motion.sample(t_e)
+        now = motion.sample(t_e) if start is None else start
         best: Motion | None = None
         t_best = -np.inf
         for c0 in range(0, ESCAPE_TRIES, ESCAPE_CHUNK):

@@ -86,6 +86,7 @@ class Executor(NearConflicts):
         self.bounds = Bounds(world.robot.lower, world.robot.upper)
         self.tracks = ObstacleTracks()
         self.motion: Motion | None = None
+        self._step_motion: Motion | None = None
         self.immediate_motion: Motion | None = None
         """What a control loop beside the executive commands from the tick a kick is seen
         until the step ends (its checks can take longer than a tick): the unchecked Ruckig
@@ -122,6 +123,7 @@ class Executor(NearConflicts):
         t, dt = obs.t, self.config.control_dt_s
         if self.motion is None:
             self._install(hold(np.asarray(obs.q, dtype=float), t))
+        self._step_motion = self.motion
         if obs.goal is not None:
             self.goal = obs.goal
             self._disturbed("goal", t)

@@ -50,6 +50,8 @@ class NearConflicts:
     bounds: Bounds
     tracks: ObstacleTracks
     motion: Motion | None
+    immediate_motion: Motion | None
+    _step_motion: Motion | None
     reactions: list[Reaction]
     counters: Counters
     checks: MotionChecks
@@ -124,17 +126,23 @@ class NearConflicts:
         ``brake``) meets the predicted obstacles and no dodge is safe of them — the escape
         that meets them latest (:meth:`Escaper.latest
         <chekhov.execute.escape.Escaper.latest>`), from the tick this step's answer will be
-        in by, installed when that is :data:`LATER_S` later than the motion's."""
+        in by, installed when that is :data:`LATER_S` later than the motion's. Until that
+        tick the arm goes on with what the loop commands while the step runs
+        (:meth:`_meanwhile`), and the escape starts from there: one from the brake or the
+        stop this step installed had the arm off it when the step overran, and the lag's stop
+        then replaced it (tabletop_pole, seed 2, episode 1, at ``--compute-scale 2``)."""
         assert self.motion is not None
         dt, t_r = self.config.control_dt_s, self._t_react(t)
         current = self.motion if brake is None else self.motion.then(brake)
         t_e = max(t_r, t + dt * math.ceil(
             (self._spent() + ESCAPE_COST_S * self.wall_scale) / dt - 1e-9))
-        move, t_move, t_now = self.escaper.latest(current, t_r, t_e, self._deadline)
+        arm = self._meanwhile()
+        move, t_move, t_now = self.escaper.latest(current, t_r, t_e, self._deadline,
+                                                  start=arm.sample(t_e))
         if move is None or t_move < t_now + LATER_S:
             return False
         self.counters.dodges += 1
-        self._answer(move if brake is None else brake.then(move))   # the brake starts at t_r
+        self._answer(arm.then(move), t_e)
         return True
 
     def _stop_if_safer(self, t: float) -> Motion | None:
@@ -162,28 +170,31 @@ class NearConflicts:
             self._search_again = self.evader.cut_short
             return False
         self.counters.dodges += 1
-        self._answer(self._on_time(move, t, t_r))
+        self._answer(*self._on_time(move, t, t_r))
         return True
 
-    def _on_time(self, move: Motion, t: float, t_r: float) -> Motion:
+    def _on_time(self, move: Motion, t: float, t_r: float) -> tuple[Motion, float]:
         """A dodge ``move`` from the state at t_r (s), made again to the same target from
         the tick this step's answer will be in by, when the step has run past t_r: the arm
         goes on with the motion it has until then, and a dodge from t_r found it a tick
         behind (a lag, joined back) — from inside the obstacle's sweep, where no join back
         was safe: tabletop_pole 7 and kitchen 18 then braked for 15-20 ticks into the
-        forearm. Kept only when safe in time (no margin), else ``move``."""
+        forearm. The arm goes on with what the loop commands meanwhile (:meth:`_meanwhile`:
+        after a kick, its immediate motion, not the stop the step installed). Kept only when
+        safe in time (no margin), else ``move``; returned with the time (s) it starts to
+        differ from what the arm has."""
         dt = self.config.control_dt_s
         t_in = t + dt * math.ceil((self._spent() + ON_TIME_MARGIN_S) / dt - 1e-9)
         if t_in <= t_r or move.pieces[0].kind != "dodge":
-            return move
-        assert self.motion is not None
-        piece = ruckig_piece(self.motion.sample(t_in), move.end, t_in, self.limits, "dodge",
+            return move, t_r
+        arm = self._meanwhile()
+        piece = ruckig_piece(arm.sample(t_in), move.end, t_in, self.limits, "dodge",
                              self.bounds)
         if piece is None:
-            return move
-        again = Motion((piece,))
-        ok = self.evader.safe_in_time([self.motion.then(again)], t, 0.0)
-        return again if ok.all() else move
+            return move, t_r
+        again = arm.then(Motion((piece,)))
+        ok = self.evader.safe_in_time([again], t, 0.0)
+        return (again, t_in) if ok.all() else (move, t_r)
 
     def _out_of_way(self, now: State, t0: float, *, search: bool = True) -> Motion | None:
         """From ``now`` at clock time t0 (s): the way out of the static scene when the arm is
@@ -198,6 +209,14 @@ class NearConflicts:
         if not search:
             return None
         return ev.dodge(now, t0, self._deadline, self._resuming)
+
+    def _meanwhile(self) -> Motion:
+        """What the arm follows from this step's tick until the step's answer is in (the
+        loop's command while a step overruns its tick): a kick's immediate motion, else the
+        motion the step began with (outside a step, the motion)."""
+        arm = self.immediate_motion or self._step_motion or self.motion
+        assert arm is not None
+        return arm
 
     def _safe(self, motions: list[Motion], t0: float) -> NDArray[np.bool_]:
         """:meth:`Evader.safe_in_time <chekhov.execute.evade.Evader.safe_in_time>`."""
