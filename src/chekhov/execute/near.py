@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from chekhov.execute.checks import MotionChecks
-from chekhov.execute.escape import Escaper
+from chekhov.execute.escape import FINE_WINDOW_S, Escaper
 from chekhov.execute.evade import Evader
 from chekhov.execute.interface import Counters, ExecutorConfig, Reaction
 from chekhov.execute.motion import Bounds, Motion, State, brake_along, ruckig_piece, stop_from
@@ -29,8 +29,11 @@ from chekhov.world import World
 
 ON_TIME_MARGIN_S = 0.002
 """s of wall time a step takes after its dodge (:meth:`NearConflicts._on_time`)."""
-LATER_S = 0.05
-"""s: an escape replaces the motion when it meets the predicted obstacles this much later."""
+LATER_S = FINE_WINDOW_S
+"""s: an escape replaces the motion when it meets the predicted obstacles this much later —
+one of the windows it is judged in, the least difference the judgement resolves. At 0.05 s,
+tabletop_container seed 1 episode 2 braked into the forearm in every run (an escape 40 ms
+later was left); at 0.02, 0 of 3 replays collided."""
 ESCAPE_COST_S = 0.015
 """s of wall time an escape search is expected to take (its escape starts after it)."""
 MOVING_ASIDE = ("dodge", "swerve")
