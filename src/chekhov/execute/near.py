@@ -135,10 +135,9 @@ class NearConflicts:
         stop this step installed had the arm off it when the step overran, and the lag's stop
         then replaced it (tabletop_pole, seed 2, episode 1, at ``--compute-scale 2``)."""
         assert self.motion is not None
-        dt, t_r = self.config.control_dt_s, self._t_react(t)
+        t_r = self._t_react(t)
         current = self.motion if brake is None else self.motion.then(brake)
-        t_e = max(t_r, t + dt * math.ceil(
-            (self._spent() + ESCAPE_COST_S * self.wall_scale) / dt - 1e-9))
+        t_e = max(t_r, self._in_by(t, ESCAPE_COST_S * self.wall_scale))
         arm = self._meanwhile()
         move, t_move, t_now = self.escaper.latest(current, t_r, t_e, self._deadline,
                                                   start=arm.sample(t_e))
@@ -178,16 +177,14 @@ class NearConflicts:
 
     def _on_time(self, move: Motion, t: float, t_r: float) -> tuple[Motion, float]:
         """A dodge ``move`` from the state at t_r (s), made again to the same target from
-        the tick this step's answer will be in by, when the step has run past t_r: the arm
-        goes on with the motion it has until then, and a dodge from t_r found it a tick
-        behind (a lag, joined back) — from inside the obstacle's sweep, where no join back
-        was safe: tabletop_pole 7 and kitchen 18 then braked for 15-20 ticks into the
-        forearm. The arm goes on with what the loop commands meanwhile (:meth:`_meanwhile`:
-        after a kick, its immediate motion, not the stop the step installed). Kept only when
-        safe in time (no margin), else ``move``; returned with the time (s) it starts to
-        differ from what the arm has."""
-        dt = self.config.control_dt_s
-        t_in = t + dt * math.ceil((self._spent() + ON_TIME_MARGIN_S) / dt - 1e-9)
+        the tick this step's answer will be in by, when the step has run past t_r: until
+        then the arm goes on with what the loop commands meanwhile (:meth:`_meanwhile`: after
+        a kick, its immediate motion, not the stop the step installed), and a dodge from t_r
+        found it a tick behind (a lag, joined back) — from inside the obstacle's sweep, where
+        no join back was safe: tabletop_pole 7 and kitchen 18 then braked for 15-20 ticks
+        into the forearm. Kept only when safe in time (no margin), else ``move``; returned
+        with the time (s) it starts to differ from what the arm has."""
+        t_in = self._in_by(t, ON_TIME_MARGIN_S)
         if t_in <= t_r or move.pieces[0].kind != "dodge":
             return move, t_r
         arm = self._meanwhile()
@@ -231,6 +228,12 @@ class NearConflicts:
         while the reaction is computed."""
         dt = self.config.control_dt_s
         return t + dt * max(1, round(self.config.reaction_lead_s / dt))
+
+    def _in_by(self, t: float, more_s: float) -> float:
+        """s, the tick this step (at tick t, s) will have its answer in by when it takes
+        ``more_s`` (s, on the clock) beyond what it has spent (:meth:`_spent`)."""
+        dt = self.config.control_dt_s
+        return t + dt * math.ceil((self._spent() + more_s) / dt - 1e-9)
 
     def _spent(self) -> float:
         """s, this step's own compute so far (an inline worker's planning left out), times
