@@ -4,7 +4,8 @@ episodes with a forearm sweeping across, a goal change and a kick each
 (:mod:`~chekhov.execute.evaluate`), summed up in one JSON-able dict per scene and planner.
 
 Each episode first runs undisturbed (the same start, goal and executive, nothing happening),
-on the clock that does not charge compute: its duration times the script
+on the clock that does not charge compute: its duration times the goal change; the task with
+that goal change, on the same clock, then aims the forearm and times the kick
 (:func:`episode_script`), so every run on any machine gets the same episodes. The scripts
 come from the first planner's undisturbed runs, so every planner gets the same episodes.
 Each planner then runs the episode's task alone (on the run's own clock) —
@@ -127,7 +128,9 @@ def react_scene(world: World, config: ReactConfig,
 def episode_script(world: World, planner: Planner, config: ReactConfig, index: int
                    ) -> EpisodeScript | None:
     """Episode ``index`` of ``config.seed``'s stream, its disturbances timed by an undisturbed
-    run of ``planner`` on a clock that does not charge compute, where every plan's reply
+    run of ``planner`` (the goal change) and by its run of the task with that goal change
+    (the forearm and the kick: :func:`make_script`'s ``follow``), on a clock that does not
+    charge compute, where every plan's reply
     comes one planning budget after it is asked for — so that every run, on any machine, gets
     the same scripts: on the charged clock a tick's difference in the run's duration moved
     the forearm, and an episode that collided in a run could not be replayed. None when that
@@ -140,8 +143,13 @@ def episode_script(world: World, planner: Planner, config: ReactConfig, index: i
                   reply_after_s=config.executor.planning_budget_s)
     if rec.t_reached is None:
         return None
+    def follow(task: EpisodeScript) -> tuple[float, Array] | None:
+        moved = run_one(world, planner, task, config.undisturbed_limit_s, free,
+                        reply_after_s=config.executor.planning_budget_s)
+        return None if moved.t_reached is None else (moved.t_reached, moved.q)
+
     ee = world.robot.compute_ee_poses(rec.q)[:, :3, 3]
-    return make_script(world, config.seed, index, rec.t_reached, ee, rec.q)
+    return make_script(world, config.seed, index, rec.t_reached, ee, rec.q, follow=follow)
 
 
 def scripted_episode(world: World, planner: Planner, script: EpisodeScript,

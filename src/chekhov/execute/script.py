@@ -12,12 +12,14 @@ and is shrunk (halved, up to 4 times, when it lands:
 limits and collision-free, so is the kicked arm going on at its velocity for 0.1 s, and one
 motion within the limits from the kicked state (a brake, or a constant acceleration) stays
 free for 0.5 s. The
-forearm appears at least 0.3 m from the arm (as it is in the undisturbed motion then), so its
-first frame is no contact already. Units: s, m, rad.
+forearm appears at least 0.3 m from the arm as it is then in the motion it is aimed at (the
+task with its goal change, when :func:`make_script` is given how to run it; else the
+undisturbed motion), so its first frame is no contact already. Units: s, m, rad.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -87,26 +89,46 @@ class EpisodeScript:
                              goal_changes=self.goal_changes)
 
 
-def episode_rng(seed: int, index: int) -> np.random.Generator:
-    return np.random.default_rng([seed, index, 18])
+Follow = Callable[["EpisodeScript"], "tuple[float, Array] | None"]
+"""Runs an episode's task with its goal change and nothing else: (its duration s, its
+configurations (N, K) rad evenly in time), or None when it does not reach its goal."""
+
+
+def episode_rng(seed: int, index: int, part: int = 0) -> np.random.Generator:
+    """The stream of one part of episode ``index`` of stream ``seed`` (1: the goal change,
+    2: the forearm, 3: the kick): each its own, so that one drawn differently (a forearm
+    aimed at another motion) does not move the others."""
+    return np.random.default_rng([seed, index, 18, part])
 
 
 def make_script(world: World, seed: int, index: int, duration_s: float,
-                ee_path: Array, q_path: Array | None = None) -> EpisodeScript:
+                ee_path: Array, q_path: Array | None = None, *,
+                follow: Follow | None = None) -> EpisodeScript:
     """Episode ``index`` of stream ``seed``: its task case and one disturbance of each kind
     timed against the undisturbed motion (``duration_s`` s, end-effector positions
     ``ee_path`` (N, 3) m along it, evenly in time). With the undisturbed configurations
     ``q_path`` (N, K) rad, the forearm appears at least :data:`APPEAR_CLEARANCE_M` from the
-    arm as it is then (points along its links)."""
+    arm as it is then (points along its links). With ``follow``, the forearm and the kick
+    are timed against the motion of the task *with its goal change* instead (when that
+    reaches its goal): after a goal change the arm is elsewhere than in the undisturbed
+    motion, and a forearm placed against that had crossed where the arm no longer went, or
+    appeared beside where it was (shelf_boxes, seed 3, episode 5: contact 30 ms after the
+    forearm appeared)."""
     case = sample_task_case(world, seed, index)
-    rng = episode_rng(seed, index)
     goal = Goal.pose(case.T_goal)
-    arm = _forearm(world, rng, duration_s, ee_path, q_path)
-    change = _goal_change(world, rng, duration_s, case.goal_label)
+    change = _goal_change(world, episode_rng(seed, index, 1), duration_s, case.goal_label)
+    changes = () if change is None else (change,)
+    if follow is not None and changes:
+        moved = follow(EpisodeScript(index, case.q_start, goal, case.goal_label,
+                                     goal_changes=changes))
+        if moved is not None:
+            duration_s, q_path = moved
+            ee_path = world.robot.compute_ee_poses(q_path)[:, :3, 3]
+    arm = _forearm(world, episode_rng(seed, index, 2), duration_s, ee_path, q_path)
+    rng = episode_rng(seed, index, 3)
     kick = Kick(float(rng.uniform(0.1, 0.9) * duration_s),
                 rng.uniform(-KICK_RAD, KICK_RAD, world.robot.dof))
-    return EpisodeScript(index, case.q_start, goal, case.goal_label, arm,
-                         () if change is None else (change,), (kick,))
+    return EpisodeScript(index, case.q_start, goal, case.goal_label, arm, changes, (kick,))
 
 
 def start_and_goal(world: World, seed: int, index: int) -> tuple[Array, Goal]:

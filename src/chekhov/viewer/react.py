@@ -108,16 +108,22 @@ class LiveState:
 def prepare_episode(world: World, planner: Planner, config: LiveConfig, index: int
                     ) -> tuple[EpisodeScript, float] | None:
     """Episode ``index`` as ``chekhov react`` runs it: its undisturbed run on the simulated
-    clock (an inline worker, ``world``) times its script. (script, deadline s), or None when
-    the undisturbed run did not reach the goal."""
+    clock (an inline worker, ``world``) times its script (with goal changes, the forearm
+    and the kick are aimed at the task with its goal change, run the same way). (script,
+    deadline s), or None when the undisturbed run did not reach the goal."""
     rc = config.react
     q0, goal = start_and_goal(world, rc.seed, index)
     plain = run_one(world, planner, EpisodeScript(index, q0, goal, ""),
                     rc.undisturbed_limit_s, rc)
     if plain.t_reached is None:
         return None
+    def follow(task: EpisodeScript) -> tuple[float, Array] | None:
+        moved = run_one(world, planner, task, rc.undisturbed_limit_s, rc)
+        return None if moved.t_reached is None else (moved.t_reached, moved.q)
+
     ee = world.robot.compute_ee_poses(plain.q)[:, :3, 3]
-    script = make_script(world, rc.seed, index, plain.t_reached, ee, plain.q)
+    script = make_script(world, rc.seed, index, plain.t_reached, ee, plain.q,
+                         follow=follow if config.goal_changes else None)
     script = replace(script, kicks=script.kicks if config.kicks else (),
                      goal_changes=script.goal_changes if config.goal_changes else ())
     return script, rc.deadline_factor * plain.t_reached + rc.deadline_extra_s
