@@ -204,3 +204,35 @@ def test_an_overrunning_steps_escape_starts_where_the_loop_has_the_arm(world, li
                            ex.immediate_motion.sample(t_e + 5 * dt).q)
     _, Q = ex.motion.positions(t0, ex.motion.t_end, 0.005)
     assert world.robot.within_limits(Q).all() and np.allclose(ex.motion.end.qd, 0.0, atol=1e-9)
+
+
+def test_a_ball_seen_once_is_fled_though_its_worst_case_ties_every_escape(world, limits):
+    """A ball flying at a resting arm's elbow from 0.35 m, seen in one sensor frame only (its
+    velocity unknown: a sphere growing at the speed bound): judged against that alone, no
+    escape meets it a judging window later than staying put does. The escape taken is the
+    one that meets the sphere growing at half the bound latest — and against the ball's
+    *true* motion (the exact checker) it is in contact later than staying put is."""
+    q0, _ = start_and_goal(world, 0, 1)
+    elbow = world.robot.compute_joint_placements(q0)[3, :3, 3]
+    d = np.array([-1.0, 0.0, 0.0])
+    ball = MovingObstacle("ball", Shape("sphere", (0.06,)), np.eye(3), elbow - 0.35 * d,
+                          elbow + 0.5 * d, 0.0, 0.8)
+    t0, t_e = 0.1, 0.12
+    tracks = ObstacleTracks()
+    tracks.update(obstacles_at((ball,), t0), t0)
+    assert not tracks.tracks["ball"].velocity_known
+    staying = hold(q0, t0)
+    worst_only = _escaper(world, tracks, limits)
+    worst_only._slower_tie = lambda *args: None           # type: ignore[method-assign]
+    _, t_move, t_stay = worst_only.latest(staying, t0, t_e)
+    assert t_move < t_stay + FINE_WINDOW_S                # the worst case ties them all
+    move, t_move, t_stay = _escaper(world, tracks, limits).latest(staying, t0, t_e)
+    assert move is not None and t_move >= t_stay + FINE_WINDOW_S
+    assert move.t_start == pytest.approx(t_e) and np.allclose(move.sample(t_e).q, q0)
+    assert world.robot.within_limits(move.positions(t_e, move.t_end, 0.005)[1]).all()
+    truth = TrueWorld(world, (ball,))
+    ts = np.arange(t_e, t0 + 0.6, 0.005)
+    hit_stay = next(float(t) for t in ts if truth.collides(q0, float(t)))
+    hit_move = next((float(t) for t in ts
+                     if truth.collides(move.sample(float(t)).q, float(t))), np.inf)
+    assert hit_move > hit_stay

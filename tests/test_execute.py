@@ -998,7 +998,10 @@ def test_an_obstacle_on_the_goal_is_answered_at_once_by_holding_short_of_it(worl
     there, and reaches the goal once the ball is gone. Judged by the exact checker against
     the ball's true pose. That with no speed bound on obstacles seen once; with the
     executive's (1 m/s), the ball's first frame makes it anywhere within 0.7 m, and the
-    answer on the tick after it is a stop — the rest the same."""
+    answer is a stop on the tick after it, or an escape away from where the ball was seen
+    (judged against the sphere growing at half the bound, ``Escaper._slower_tie``), which
+    starts on the tick its search is in by (ESCAPE_COST_S and the step's own compute: within
+    a sensor period on any machine this runs on) — the rest the same."""
     bounded = CONFIG.executor.obstacle_speed_m_s
     assert bounded > 0
     for speed in (0.0, bounded):
@@ -1015,11 +1018,13 @@ def test_an_obstacle_on_the_goal_is_answered_at_once_by_holding_short_of_it(worl
         assert not check.collision and check.limit_violations == 0
         seen = [r for r in rec.reactions if r.kind == "obstacle"]
         assert seen and seen[0].t_reacted is not None
-        assert seen[0].t_reacted - seen[0].t_observed <= DT + 1e-9
+        latency = seen[0].t_reacted - seen[0].t_observed
         if speed == 0.0:
-            assert rec.counters.holds >= 1
+            assert latency <= DT + 1e-9 and rec.counters.holds >= 1
         else:
-            assert rec.counters.safe_stops >= 1
+            assert rec.counters.safe_stops + rec.counters.dodges >= 1
+            assert latency <= DT + 1e-9 or \
+                (rec.counters.dodges >= 1 and latency <= CONFIG.sim.sensor_period_s + 1e-9)
         assert rec.counters.failed_plans >= 1              # the goal was out of reach a while
         assert rec.reached and _meets(world, rec.q[-1], first.goal)
         assert rec.t_reached > ball.t_end

@@ -36,6 +36,9 @@ the forearm 10 cm along its path, and a move that passes before it comes is judg
 as early as one that waits for it."""
 ESCAPE_CHUNK = 2 * DODGE_CHUNK
 """Escapes made and judged at a time (until one never meets the obstacles)."""
+SLOWER = 0.5
+"""Of the speed bound: how fast a track seen once is taken to grow when every escape meets
+its worst case as early as the motion does (:meth:`Escaper._slower_tie`)."""
 
 
 class Escaper:
@@ -65,16 +68,46 @@ class Escaper:
         now = motion.sample(t_e) if start is None else start
         best: Motion | None = None
         t_best = -np.inf
+        made: list[Motion] = []
         for c0 in range(0, ESCAPE_TRIES, ESCAPE_CHUNK):
             if c0 and past(deadline):
                 break
             moves = self.evader.escape_moves(now, t_e, ESCAPE_CHUNK)
+            made += moves
             i, t_i = self._latest(moves, t0, packs, edges, t_best)
             if i >= 0:
                 best, t_best = moves[i], t_i
             if t_best == np.inf:
                 break
+        if t_best < t_motion + FINE_WINDOW_S:
+            tie = self._slower_tie(motion, made, t0, t_motion, edges)
+            if tie is not None:
+                return tie
         return best, t_best, t_motion
+
+    def _slower_tie(self, motion: Motion, made: list[Motion], t0: float, t_motion: float,
+                    edges: Array) -> tuple[Motion, float, float] | None:
+        """No escape meets the worst-case prediction :data:`FINE_WINDOW_S` later than
+        ``motion`` (from t0, s; it meets it at t_motion). When a track is new (seen once:
+        a sphere growing at the speed bound, which every escape meets about as soon as the
+        motion does), the escapes of ``made`` are judged against it growing at
+        :data:`SLOWER` of the bound: the one that meets that latest, when
+        :data:`FINE_WINDOW_S` later than ``motion`` does and no earlier than it against the
+        worst case — the escape that gets farthest from where the track was seen. Returns
+        (it, its time against the slower sphere, the motion's), s; or None."""
+        ev = self.evader
+        if all(tr.velocity_known for tr in ev.tracks.tracks.values()) or not made:
+            return None
+        slower = ev.windows(t0, 0.0, FINE_WINDOW_S,
+                            speed_bound_m_s=SLOWER * ev.settings.obstacle_speed_m_s)
+        _, s_motion = self._latest([motion], t0, slower, edges)
+        i, s_i = self._latest(made, t0, slower, edges, s_motion + FINE_WINDOW_S)
+        if i < 0:
+            return None
+        packs = ev.windows(t0, 0.0, FINE_WINDOW_S)
+        if self._latest([made[i]], t0, packs, edges)[1] < t_motion - 1e-9:
+            return None
+        return made[i], s_i, s_motion
 
     def _latest(self, motions: list[Motion], t0: float, packs: list[PackedWorld],
                 edges: Array, beat: float = -np.inf) -> tuple[int, float]:

@@ -141,28 +141,31 @@ class Evader:
         self.world, self.tracks, self.settings = world, tracks, settings
         self.limits, self.bounds = limits, bounds
         self.rng = np.random.default_rng(seed)
-        self._windows: dict[tuple[float, float, float | None], list[PackedWorld]] = {}
+        self._windows: dict[tuple[float, float, float | None, float], list[PackedWorld]] = {}
         self._windows_of: object = None
         self._cut: _CutSearch | None = None
 
     def windows(self, t0: float, margin_m: float | None = None,
-                window_s: float | None = None) -> list[PackedWorld]:
+                window_s: float | None = None, *,
+                speed_bound_m_s: float | None = None) -> list[PackedWorld]:
         """The fast checker's packed world holding each window's (:func:`window_edges`, of
         ``window_s`` when given) predicted sweep from t0 (s) over the horizon (inflated by
-        ``margin_m``, m; the settings' by default), for :meth:`safe_in_time`; the checker
+        ``margin_m``, m; the settings' by default; a track seen once moving at up to
+        ``speed_bound_m_s``, m/s, the settings' by default), for :meth:`safe_in_time`; the checker
         itself is not changed (``FastChecker.packed_with``). Kept until the tracks change (a
         sensor frame): a tick's reactions ask for the same windows several times."""
         c, fast = self.settings, self.world.fast
         margin = c.margin_m if margin_m is None else margin_m
+        bound = c.obstacle_speed_m_s if speed_bound_m_s is None else speed_bound_m_s
         if self._windows_of is not self.tracks.tracks:
             self._windows, self._windows_of = {}, self.tracks.tracks
-        key = (t0, margin, window_s)
+        key = (t0, margin, window_s, bound)
         kept = self._windows.get(key)
         if kept is not None:
             return kept
         edges = window_edges(c.horizon_s, window_s)
         packs = [fast.packed_with(predicted_primitives(self.tracks, t0 + a, b - a, margin,
-                                                       speed_bound_m_s=c.obstacle_speed_m_s))
+                                                       speed_bound_m_s=bound))
                  for a, b in itertools.pairwise(edges)]
         if len(self._windows) >= 8:
             self._windows.clear()
