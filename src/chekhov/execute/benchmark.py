@@ -143,6 +143,7 @@ def episode_script(world: World, planner: Planner, config: ReactConfig, index: i
                   reply_after_s=config.executor.planning_budget_s)
     if rec.t_reached is None:
         return None
+
     def follow(task: EpisodeScript) -> tuple[float, Array] | None:
         moved = run_one(world, planner, task, config.undisturbed_limit_s, free,
                         reply_after_s=config.executor.planning_budget_s)

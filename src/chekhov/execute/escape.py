@@ -57,9 +57,12 @@ class Escaper:
         (:meth:`Evader.escape_moves <chekhov.execute.evade.Evader.escape_moves>`, made
         :data:`ESCAPE_CHUNK` at a time until one never meets it, :data:`ESCAPE_TRIES` at
         most, or ``deadline`` — a ``time.perf_counter()`` time — is past), the one within the
-        limits to its end that meets it latest. Returns (that escape, from t_e, or None; the
-        time it meets it; the time ``motion`` does), s, inf: never, -inf: ``motion`` leaves
-        the limits."""
+        limits to its end that meets it latest — unless none meets it a judging window
+        later than ``motion`` and a track is new (:meth:`_slower_tie`, whose pass runs even
+        when ``deadline`` is past: 3-4 ms more on shelf_boxes; its times are then those
+        against the slower sphere). Returns (that escape, from t_e, or None; the time it
+        meets it; the time ``motion`` does), s, inf: never, -inf: ``motion`` leaves the
+        limits."""
         edges = window_edges(self.evader.settings.horizon_s, FINE_WINDOW_S)
         packs = self.evader.windows(t0, 0.0, FINE_WINDOW_S)
         _, t_motion = self._latest([motion], t0, packs, edges)

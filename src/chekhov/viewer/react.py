@@ -117,6 +117,7 @@ def prepare_episode(world: World, planner: Planner, config: LiveConfig, index: i
                     rc.undisturbed_limit_s, rc)
     if plain.t_reached is None:
         return None
+
     def follow(task: EpisodeScript) -> tuple[float, Array] | None:
         moved = run_one(world, planner, task, rc.undisturbed_limit_s, rc)
         return None if moved.t_reached is None else (moved.t_reached, moved.q)
