@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 from chekhov.execute.evaluate import EpisodeCheck, evaluate_episode
 from chekhov.execute.executor import Executor
 from chekhov.execute.interface import ExecutorConfig
-from chekhov.execute.script import EpisodeScript, make_script, start_and_goal
+from chekhov.execute.script import EpisodeScript, Follow, make_script, start_and_goal
 from chekhov.execute.simulate import EpisodeRecord, SimConfig, run_episode
 from chekhov.execute.worker import InlineWorker
 from chekhov.planners.base import Planner, PlannerBase
@@ -144,13 +144,21 @@ def episode_script(world: World, planner: Planner, config: ReactConfig, index: i
     if rec.t_reached is None:
         return None
 
-    def follow(task: EpisodeScript) -> tuple[float, Array] | None:
-        moved = run_one(world, planner, task, config.undisturbed_limit_s, free,
-                        reply_after_s=config.executor.planning_budget_s)
-        return None if moved.t_reached is None else (moved.t_reached, moved.q)
-
+    follow = task_runner(world, planner, config.undisturbed_limit_s, free,
+                         reply_after_s=config.executor.planning_budget_s)
     ee = world.robot.compute_ee_poses(rec.q)[:, :3, 3]
     return make_script(world, config.seed, index, rec.t_reached, ee, rec.q, follow=follow)
+
+
+def task_runner(world: World, planner: Planner, limit_s: float, config: ReactConfig, *,
+                reply_after_s: float | None = None) -> Follow:
+    """:func:`make_script`'s ``follow``: runs a task script with :func:`run_one` (at most
+    ``limit_s`` s) and gives (its duration s, its configurations (N, K) rad at the control
+    rate), or None when it does not reach its goal."""
+    def follow(task: EpisodeScript) -> tuple[float, Array] | None:
+        rec = run_one(world, planner, task, limit_s, config, reply_after_s=reply_after_s)
+        return None if rec.t_reached is None else (rec.t_reached, rec.q)
+    return follow
 
 
 def scripted_episode(world: World, planner: Planner, script: EpisodeScript,

@@ -83,13 +83,14 @@ class Escaper:
             if t_best == np.inf:
                 break
         if t_best < t_motion + FINE_WINDOW_S:
-            tie = self._slower_tie(motion, made, t0, t_motion, edges)
+            tie = self._slower_tie(motion, made, t0, t_motion, packs, edges)
             if tie is not None:
                 return tie
         return best, t_best, t_motion
 
     def _slower_tie(self, motion: Motion, made: list[Motion], t0: float, t_motion: float,
-                    edges: Array) -> tuple[Motion, float, float] | None:
+                    packs: list[PackedWorld], edges: Array
+                    ) -> tuple[Motion, float, float] | None:
         """No escape meets the worst-case prediction :data:`FINE_WINDOW_S` later than
         ``motion`` (from t0, s; it meets it at t_motion). When a track is new (seen once:
         a sphere growing at the speed bound, which every escape meets about as soon as the
@@ -97,7 +98,8 @@ class Escaper:
         :data:`SLOWER` of the bound: the one that meets that latest, when
         :data:`FINE_WINDOW_S` later than ``motion`` does and no earlier than it against the
         worst case — the escape that gets farthest from where the track was seen. Returns
-        (it, its time against the slower sphere, the motion's), s; or None."""
+        (it, its time against the slower sphere, the motion's), s; or None. ``packs``:
+        the worst case's windows (``edges``, s from t0), as :meth:`latest` judged them."""
         ev = self.evader
         if all(tr.velocity_known for tr in ev.tracks.tracks.values()) or not made:
             return None
@@ -107,7 +109,6 @@ class Escaper:
         i, s_i = self._latest(made, t0, slower, edges, s_motion + FINE_WINDOW_S)
         if i < 0:
             return None
-        packs = ev.windows(t0, 0.0, FINE_WINDOW_S)
         if self._latest([made[i]], t0, packs, edges)[1] < t_motion - 1e-9:
             return None
         return made[i], s_i, s_motion

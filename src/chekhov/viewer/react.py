@@ -28,7 +28,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from chekhov.errors import ChekhovError
-from chekhov.execute.benchmark import ReactConfig, executive_planner, run_one
+from chekhov.execute.benchmark import ReactConfig, executive_planner, run_one, task_runner
 from chekhov.execute.executor import Executor
 from chekhov.execute.interface import Command, Observation, Reaction
 from chekhov.execute.motion import Motion
@@ -117,11 +117,7 @@ def prepare_episode(world: World, planner: Planner, config: LiveConfig, index: i
                     rc.undisturbed_limit_s, rc)
     if plain.t_reached is None:
         return None
-
-    def follow(task: EpisodeScript) -> tuple[float, Array] | None:
-        moved = run_one(world, planner, task, rc.undisturbed_limit_s, rc)
-        return None if moved.t_reached is None else (moved.t_reached, moved.q)
-
+    follow = task_runner(world, planner, rc.undisturbed_limit_s, rc)
     ee = world.robot.compute_ee_poses(plain.q)[:, :3, 3]
     script = make_script(world, rc.seed, index, plain.t_reached, ee, plain.q,
                          follow=follow if config.goal_changes else None)
