@@ -3,6 +3,7 @@ reach their goal through kicks, goal changes and a forearm sweeping across, judg
 fact by the exact checker against the obstacles' true poses; and ``chekhov react``."""
 
 import json
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -24,6 +25,7 @@ from chekhov.execute.motion import (
     stop_from,
     trajectory_motion,
 )
+from chekhov.execute.near import ESCAPE_COST_S
 from chekhov.execute.obstacles import MovingObstacle, ObstacleTracks
 from chekhov.execute.script import EpisodeScript, GoalChange, Kick, make_script, start_and_goal
 from chekhov.execute.simulate import EpisodeRecord, SimConfig, escape_motions, shrunk_kick
@@ -1000,8 +1002,9 @@ def test_an_obstacle_on_the_goal_is_answered_at_once_by_holding_short_of_it(worl
     executive's (1 m/s), the ball's first frame makes it anywhere within 0.7 m, and the
     answer is a stop on the tick after it, or an escape away from where the ball was seen
     (judged against the sphere growing at half the bound, ``Escaper._slower_tie``), which
-    starts on the tick its search is in by (ESCAPE_COST_S and the step's own compute: within
-    a sensor period on any machine this runs on) — the rest the same."""
+    starts on the tick its search is in by: no later than the step's own wall time (as
+    measured; it depends on the machine and its load — 30 ms here alone, 40 ms beside two
+    other runs) plus ESCAPE_COST_S, rounded up to a tick — the rest the same."""
     bounded = CONFIG.executor.obstacle_speed_m_s
     assert bounded > 0
     for speed in (0.0, bounded):
@@ -1023,8 +1026,11 @@ def test_an_obstacle_on_the_goal_is_answered_at_once_by_holding_short_of_it(worl
             assert latency <= DT + 1e-9 and rec.counters.holds >= 1
         else:
             assert rec.counters.safe_stops + rec.counters.dodges >= 1
+            wall = rec.counters.step_wall_s[round(seen[0].t_observed / DT)]
+            lead = DT * max(1, round(config.executor.reaction_lead_s / DT))
+            in_by = max(lead, DT * math.ceil((wall + ESCAPE_COST_S) / DT - 1e-9))
             assert latency <= DT + 1e-9 or \
-                (rec.counters.dodges >= 1 and latency <= CONFIG.sim.sensor_period_s + 1e-9)
+                (rec.counters.dodges >= 1 and latency <= in_by + 1e-9)
         assert rec.counters.failed_plans >= 1              # the goal was out of reach a while
         assert rec.reached and _meets(world, rec.q[-1], first.goal)
         assert rec.t_reached > ball.t_end
