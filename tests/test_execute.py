@@ -1413,3 +1413,43 @@ def test_the_forearm_is_aimed_at_the_motion_with_the_goal_change(world, planner)
         gaps.append(TrueWorld(world, script.obstacles).clearance(q_then, t_in))
     assert len(asked) == 5 and min(gaps) >= 0.15, gaps
     assert max(aimed) <= 0.18 < max(misses), (aimed, misses)
+
+
+def test_a_forearm_that_leaves_the_arm_no_way_out_is_drawn_again(world, planner, limits,
+                                                                   monkeypatch):
+    """The scripts leave the arm a way out (:func:`forearm_way_out`): tabletop_pole seed 1
+    episode 2's first forearm appeared 0.3 m from an arm moving towards it and met it 0.35 s
+    later; one reaction window after it appeared, not even braking at the limits from the
+    motion it was aimed at gets clear of it (the exact checker against its true motion), and
+    the rule rejects it. The script takes the stream's next draw the rule accepts; with no
+    rule it is the first."""
+    from chekhov.execute import benchmark
+    from chekhov.execute.evaluate import ESCAPE_AFTER_S
+
+    config = ReactConfig(seed=1)
+    judged = []
+    rule = benchmark.script_way_out(world, config)
+
+    def spy(arm, duration_s, q_path):
+        judged.append((arm, duration_s, q_path, rule(arm, duration_s, q_path)))
+        return judged[-1][-1]
+
+    monkeypatch.setattr(benchmark, "script_way_out", lambda w, c: spy)
+    script = benchmark.episode_script(world, planner, config, 2)
+    monkeypatch.setattr(benchmark, "script_way_out", lambda w, c: None)
+    plain = benchmark.episode_script(world, planner, config, 2)
+    assert script is not None and plain is not None
+    first, last = judged[0], judged[-1]
+    assert not first[-1] and last[-1] and len(judged) >= 2
+    assert script.obstacles is last[0]
+    key = lambda arm: [(o.t_start, o.speed_mps, *o.p_start, *o.p_end) for o in arm]  # noqa: E731
+    assert key(plain.obstacles) == key(first[0]) != key(last[0])
+    arm, duration_s, Q, _ = first
+    truth, dt = TrueWorld(world, arm), duration_s / (len(Q) - 1)
+    hit = next(i for i in range(len(Q)) if truth.collides(Q[i], i * dt))
+    i0 = math.ceil((arm[0].t_start + benchmark.reaction_window_s(config)) / dt)
+    assert i0 < hit
+    v0 = (Q[i0 + 1] - Q[i0 - 1]) / (2 * dt)
+    n = hit - i0 + round(ESCAPE_AFTER_S / dt)
+    brake = next(escape_motions(Q[i0], v0, limits, n, 0, np.random.default_rng(0), dt))
+    assert any(truth.collides(q, (i0 + k) * dt) for k, q in enumerate(brake))

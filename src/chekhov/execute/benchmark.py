@@ -24,10 +24,10 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from chekhov.execute.evaluate import EpisodeCheck, evaluate_episode
+from chekhov.execute.evaluate import EpisodeCheck, evaluate_episode, forearm_way_out
 from chekhov.execute.executor import Executor
 from chekhov.execute.interface import ExecutorConfig
-from chekhov.execute.script import EpisodeScript, Follow, make_script, start_and_goal
+from chekhov.execute.script import EpisodeScript, Follow, WayOut, make_script, start_and_goal
 from chekhov.execute.simulate import EpisodeRecord, SimConfig, run_episode
 from chekhov.execute.worker import InlineWorker
 from chekhov.planners.base import Planner, PlannerBase
@@ -147,7 +147,22 @@ def episode_script(world: World, planner: Planner, config: ReactConfig, index: i
     follow = task_runner(world, planner, config.undisturbed_limit_s, free,
                          reply_after_s=config.executor.planning_budget_s)
     ee = world.robot.compute_ee_poses(rec.q)[:, :3, 3]
-    return make_script(world, config.seed, index, rec.t_reached, ee, rec.q, follow=follow)
+    return make_script(world, config.seed, index, rec.t_reached, ee, rec.q, follow=follow,
+                       way_out=script_way_out(world, config))
+
+
+def reaction_window_s(config: ReactConfig) -> float:
+    """s, from an event to the first moment a reaction to it can be moving the arm: a sensor
+    period (the frame's phase), its latency and a planning budget."""
+    return config.sim.sensor_period_s + config.sim.sensor_latency_s + \
+        config.executor.planning_budget_s
+
+
+def script_way_out(world: World, config: ReactConfig) -> WayOut:
+    """The scripts' way-out rule (:func:`forearm_way_out`) for ``config``'s reaction window
+    and limits."""
+    return forearm_way_out(world, reaction_window_s(config),
+                           joint_limits(world.robot.velocity_limit, config.executor.timing))
 
 
 def task_runner(world: World, planner: Planner, limit_s: float, config: ReactConfig, *,
@@ -172,10 +187,9 @@ def scripted_episode(world: World, planner: Planner, script: EpisodeScript,
     deadline = config.deadline_factor * (t_plain or config.undisturbed_limit_s / 3) + \
         config.deadline_extra_s
     rec = run_one(world, planner, script, deadline, config)
-    ex = config.executor
-    window = config.sim.sensor_period_s + config.sim.sensor_latency_s + ex.planning_budget_s
-    limits = joint_limits(world.robot.velocity_limit, ex.timing)
-    return EpisodeResult(script, rec, evaluate_episode(world, rec, limits, window), t_plain)
+    limits = joint_limits(world.robot.velocity_limit, config.executor.timing)
+    return EpisodeResult(script, rec, evaluate_episode(world, rec, limits,
+                                                       reaction_window_s(config)), t_plain)
 
 
 def _pct(x: list[float], q: float) -> float | None:

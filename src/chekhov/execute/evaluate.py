@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 
 from chekhov.collision.exact import ExactChecker, coal_shape
 from chekhov.execute.obstacles import MovingObstacle
+from chekhov.execute.script import WayOut
 from chekhov.execute.simulate import EpisodeRecord, escape_motions
 from chekhov.timing import Limits
 from chekhov.world import World
@@ -173,13 +174,53 @@ def _escapable(truth: TrueWorld, record: EpisodeRecord, hit: int, limits: Limits
     kicked = np.flatnonzero(record.kicked[i0:hit + 1])
     if len(kicked):
         i0 += int(kicked[-1])
-    q0, v0 = record.q[i0], record.qd[i0]
-    t0 = float(record.times[i0])
-    ts = np.arange(0.0, t_hit - t0 + ESCAPE_AFTER_S, 0.01)
-    lo, hi = truth.robot.lower, truth.robot.upper
-    for Q in escape_motions(q0, v0, limits, len(ts), ESCAPES, np.random.default_rng(hit),
-                            0.01, brake=False):
-        if all(not (np.any(q < lo) or np.any(q > hi) or truth.collides(q, t0 + float(t)))
-               for q, t in zip(Q[1:], ts[1:], strict=True)):
+    return escapes(truth, record.q[i0], record.qd[i0], float(record.times[i0]),
+                   t_hit + ESCAPE_AFTER_S, limits, np.random.default_rng(hit), t_hit)
+
+
+def escapes(truth: TrueWorld, q0: Array, v0: Array, t0: float, t_until: float,
+            limits: Limits, rng: np.random.Generator, t_first: float | None = None) -> bool:
+    """Whether one of :data:`ESCAPES` random motions within the limits (each joint at a
+    constant acceleration drawn within its limit, velocities clipped) from q0 (K,) rad at
+    v0 (K,) rad/s at time t0 stays within the joint limits and free of ``truth`` at every
+    10 ms step until ``t_until`` (s). Each motion's steps are checked nearest ``t_first``
+    (s; a contact expected then) first: a motion that does not escape is mostly found out
+    at its first check (the verdict is the same in any order)."""
+    ts = t0 + np.arange(0.0, t_until - t0, 0.01)[1:]
+    order = np.argsort(np.abs(ts - (t0 if t_first is None else t_first)), kind="stable")
+    for Q in escape_motions(q0, v0, limits, len(ts) + 1, ESCAPES, rng, 0.01, brake=False):
+        Q = Q[1:]
+        if truth.robot.within_limits(Q, tol=0.0).all() and \
+                not any(truth.collides(Q[i], float(ts[i])) for i in order):
             return True
     return False
+
+
+def forearm_way_out(world: World, window_s: float, limits: Limits) -> WayOut:
+    """The script's rule that a forearm leaves the arm a way out
+    (:data:`~chekhov.execute.script.WayOut`): the arm going on along the motion the forearm is
+    aimed at (resting at its end once there) does not touch it, or — judged as a collision
+    is judged after the fact (:func:`_escapable`) — from that motion's state one reaction
+    window (``window_s`` s: sensor period + latency + planning budget) after the forearm
+    appears, before any reaction to it can have begun, some motion within ``limits``
+    escapes it until :data:`ESCAPE_AFTER_S` after that first contact. A forearm appearing
+    0.3 m from an arm moving towards it had left none (panda_cage seed 0 episode 0,
+    tabletop_pole seed 1 episode 2: 0 of 256 motions escaped from there)."""
+    def leaves_way_out(arm: tuple[MovingObstacle, ...], duration_s: float,
+                       q_path: Array) -> bool:
+        dt = duration_s / max(len(q_path) - 1, 1)
+        t_start, t_end = min(m.t_start for m in arm), max(m.t_end for m in arm)
+        truth = TrueWorld(world, arm)
+        n = int(np.ceil(max(t_end, duration_s) / dt)) + 1
+        at = lambda i: q_path[min(i, len(q_path) - 1)]  # noqa: E731 — rests at its end
+        hit = next((i for i in range(int(t_start / dt), n)
+                    if truth.collides(at(i), i * dt)), None)
+        if hit is None:
+            return True
+        i0 = int(np.ceil((t_start + window_s) / dt))
+        if i0 >= hit:
+            return False
+        v0 = (at(i0 + 1) - at(i0 - 1)) / (2 * dt)
+        return escapes(truth, at(i0), v0, i0 * dt, hit * dt + ESCAPE_AFTER_S, limits,
+                       np.random.default_rng(hit), hit * dt)
+    return leaves_way_out

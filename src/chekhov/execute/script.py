@@ -14,7 +14,9 @@ motion within the limits from the kicked state (a brake, or a constant accelerat
 free for 0.5 s. The
 forearm appears at least 0.3 m from the arm as it is then in the motion it is aimed at (the
 task with its goal change, when :func:`make_script` is given how to run it; else the
-undisturbed motion), so its first frame is no contact already. Units: s, m, rad.
+undisturbed motion), so its first frame is no contact already; and, when the script is given a
+rule for it (``way_out``: :func:`~chekhov.execute.evaluate.forearm_way_out`), the arm in that
+motion could still get away from it one reaction window after it appears. Units: s, m, rad.
 """
 
 from __future__ import annotations
@@ -93,6 +95,11 @@ Follow = Callable[["EpisodeScript"], "tuple[float, Array] | None"]
 """Runs an episode's task with its goal change and nothing else: (its duration s, its
 configurations (N, K) rad evenly in time), or None when it does not reach its goal."""
 
+WayOut = Callable[[tuple[MovingObstacle, ...], float, Array], bool]
+"""Whether a drawn forearm (its parts), crossing a motion (its duration s, its configurations
+(N, K) rad evenly in time), leaves the arm a way out
+(:func:`~chekhov.execute.evaluate.forearm_way_out`)."""
+
 
 def episode_rng(seed: int, index: int, part: int = 0) -> np.random.Generator:
     """The stream of one part of episode ``index`` of stream ``seed`` (1: the goal change,
@@ -103,7 +110,8 @@ def episode_rng(seed: int, index: int, part: int = 0) -> np.random.Generator:
 
 def make_script(world: World, seed: int, index: int, duration_s: float,
                 ee_path: Array, q_path: Array | None = None, *,
-                follow: Follow | None = None) -> EpisodeScript:
+                follow: Follow | None = None, way_out: WayOut | None = None
+                ) -> EpisodeScript:
     """Episode ``index`` of stream ``seed``: its task case and one disturbance of each kind
     timed against the undisturbed motion (``duration_s`` s, end-effector positions
     ``ee_path`` (N, 3) m along it, evenly in time). With the undisturbed configurations
@@ -113,7 +121,8 @@ def make_script(world: World, seed: int, index: int, duration_s: float,
     reaches its goal): after a goal change the arm is elsewhere than in the undisturbed
     motion, and a forearm placed against that had crossed where the arm no longer went, or
     appeared beside where it was (shelf_boxes, seed 3, episode 5: contact 30 ms after the
-    forearm appeared)."""
+    forearm appeared). With ``way_out`` (and ``q_path``), a forearm is drawn again while it
+    leaves the arm in that motion no way out."""
     case = sample_task_case(world, seed, index)
     goal = Goal.pose(case.T_goal)
     change = _goal_change(world, episode_rng(seed, index, 1), duration_s, case.goal_label)
@@ -124,7 +133,7 @@ def make_script(world: World, seed: int, index: int, duration_s: float,
         if moved is not None:
             duration_s, q_path = moved
             ee_path = world.robot.compute_ee_poses(q_path)[:, :3, 3]
-    arm = _forearm(world, episode_rng(seed, index, 2), duration_s, ee_path, q_path)
+    arm = _forearm(world, episode_rng(seed, index, 2), duration_s, ee_path, q_path, way_out)
     rng = episode_rng(seed, index, 3)
     kick = Kick(float(rng.uniform(0.1, 0.9) * duration_s),
                 rng.uniform(-KICK_RAD, KICK_RAD, world.robot.dof))
@@ -137,10 +146,12 @@ def start_and_goal(world: World, seed: int, index: int) -> tuple[Array, Goal]:
 
 
 def _forearm(world: World, rng: np.random.Generator, duration_s: float, ee_path: Array,
-             q_path: Array | None) -> tuple[MovingObstacle, ...]:
-    """A capsule crossing the undisturbed end-effector path near a random point of it, in a
-    random horizontal direction, at a random speed; redrawn while its sweep comes nearer than
-    :data:`BASE_CLEARANCE_M` to the base."""
+             q_path: Array | None, way_out: WayOut | None = None
+             ) -> tuple[MovingObstacle, ...]:
+    """A capsule crossing the end-effector path near a random point of it, in a random
+    horizontal direction, at a random speed; redrawn while its sweep comes nearer than
+    :data:`BASE_CLEARANCE_M` to the base, it appears nearer than :data:`APPEAR_CLEARANCE_M`
+    to the arm, or (with ``way_out``) it leaves the arm no way out."""
     base = world.robot.T_world_base[:3, 3]
     shoulder = world.robot.reach[0]
     for _ in range(50):
@@ -164,8 +175,10 @@ def _forearm(world: World, rng: np.random.Generator, duration_s: float, ee_path:
         parts = (("forearm", Shape("cylinder", (FOREARM_RADIUS_M, FOREARM_LENGTH_M)), 0.0),
                  ("elbow", Shape("sphere", (FOREARM_RADIUS_M,)), -1.0),
                  ("wrist", Shape("sphere", (FOREARM_RADIUS_M,)), 1.0))
-        return tuple(MovingObstacle(name, shape, R, p0 + k * half, p1 + k * half, t0, speed)
-                     for name, shape, k in parts)
+        arm = tuple(MovingObstacle(name, shape, R, p0 + k * half, p1 + k * half, t0, speed)
+                    for name, shape, k in parts)
+        if way_out is None or q_path is None or way_out(arm, duration_s, q_path):
+            return arm
     return ()
 
 

@@ -28,7 +28,13 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from chekhov.errors import ChekhovError
-from chekhov.execute.benchmark import ReactConfig, executive_planner, run_one, task_runner
+from chekhov.execute.benchmark import (
+    ReactConfig,
+    executive_planner,
+    run_one,
+    script_way_out,
+    task_runner,
+)
 from chekhov.execute.executor import Executor
 from chekhov.execute.interface import Command, Observation, Reaction
 from chekhov.execute.motion import Motion
@@ -120,7 +126,8 @@ def prepare_episode(world: World, planner: Planner, config: LiveConfig, index: i
     follow = task_runner(world, planner, rc.undisturbed_limit_s, rc)
     ee = world.robot.compute_ee_poses(plain.q)[:, :3, 3]
     script = make_script(world, rc.seed, index, plain.t_reached, ee, plain.q,
-                         follow=follow if config.goal_changes else None)
+                         follow=follow if config.goal_changes else None,
+                         way_out=script_way_out(world, rc))
     script = replace(script, kicks=script.kicks if config.kicks else (),
                      goal_changes=script.goal_changes if config.goal_changes else ())
     return script, rc.deadline_factor * plain.t_reached + rc.deadline_extra_s
