@@ -179,16 +179,21 @@ def _escapable(truth: TrueWorld, record: EpisodeRecord, hit: int, limits: Limits
 
 
 def escapes(truth: TrueWorld, q0: Array, v0: Array, t0: float, t_until: float,
-            limits: Limits, rng: np.random.Generator, t_first: float | None = None) -> bool:
+            limits: Limits, rng: np.random.Generator, t_first: float | None = None, *,
+            go_s: float | None = None) -> bool:
     """Whether one of :data:`ESCAPES` random motions within the limits (each joint at a
-    constant acceleration drawn within its limit, velocities clipped) from q0 (K,) rad at
-    v0 (K,) rad/s at time t0 stays within the joint limits and free of ``truth`` at every
-    10 ms step until ``t_until`` (s). Each motion's steps are checked nearest ``t_first``
-    (s; a contact expected then) first: a motion that does not escape is mostly found out
-    at its first check (the verdict is the same in any order)."""
+    constant acceleration drawn within its limit, velocities clipped; with ``go_s``, for a
+    time drawn up to ``go_s`` s, then braking to rest: :func:`escape_motions`) from q0 (K,)
+    rad at v0 (K,) rad/s at time t0 stays within the joint limits and free of ``truth`` at
+    every 10 ms step until ``t_until`` (s). Each motion's steps are checked nearest
+    ``t_first`` (s; a contact expected then) first, every fourth step before the rest (a
+    contact lasts several steps): a motion that does not escape is mostly found out in a
+    few checks (the verdict is the same in any order)."""
     ts = t0 + np.arange(0.0, t_until - t0, 0.01)[1:]
-    order = np.argsort(np.abs(ts - (t0 if t_first is None else t_first)), kind="stable")
-    for Q in escape_motions(q0, v0, limits, len(ts) + 1, ESCAPES, rng, 0.01, brake=False):
+    order = np.lexsort((np.abs(ts - (t0 if t_first is None else t_first)),
+                        np.arange(len(ts)) % 4 != 0))
+    for Q in escape_motions(q0, v0, limits, len(ts) + 1, ESCAPES, rng, 0.01, brake=False,
+                            go_s=go_s):
         Q = Q[1:]
         if truth.robot.within_limits(Q, tol=0.0).all() and \
                 not any(truth.collides(Q[i], float(ts[i])) for i in order):
@@ -199,13 +204,16 @@ def escapes(truth: TrueWorld, q0: Array, v0: Array, t0: float, t_until: float,
 def forearm_way_out(world: World, window_s: float, limits: Limits) -> WayOut:
     """The script's rule that a forearm leaves the arm a way out
     (:data:`~chekhov.execute.script.WayOut`): the arm going on along the motion the forearm is
-    aimed at (resting at its end once there) does not touch it, or — judged as a collision
-    is judged after the fact (:func:`_escapable`) — from that motion's state one reaction
-    window (``window_s`` s: sensor period + latency + planning budget) after the forearm
-    appears, before any reaction to it can have begun, some motion within ``limits``
-    escapes it until :data:`ESCAPE_AFTER_S` after that first contact. A forearm appearing
-    0.3 m from an arm moving towards it had left none (panda_cage seed 0 episode 0,
-    tabletop_pole seed 1 episode 2: 0 of 256 motions escaped from there)."""
+    aimed at (resting at its end once there) never touches it, or, from that motion's state
+    one reaction window (``window_s`` s: sensor period + latency + planning budget) after the
+    forearm appears — before any reaction to it can have begun —, one of :data:`ESCAPES`
+    motions within ``limits`` (each joint at a constant acceleration drawn within its limit
+    for up to :data:`WAY_OUT_GO_S`, then braking to rest) is free of it until it is gone. A
+    forearm appearing 0.3 m from an arm moving towards it had left none (panda_cage seed 0
+    episode 0, tabletop_pole seed 1 episode 2: 0 of 256 constant accelerations escaped from
+    there); nor had one whose sweep ends beside the shoulder, where 64% of the arm's free
+    configurations touch it (shelf_boxes seed 1 episode 3: an escape from its first contact
+    met it later)."""
     def leaves_way_out(arm: tuple[MovingObstacle, ...], duration_s: float,
                        q_path: Array) -> bool:
         dt = duration_s / max(len(q_path) - 1, 1)
@@ -221,6 +229,11 @@ def forearm_way_out(world: World, window_s: float, limits: Limits) -> WayOut:
         if i0 >= hit:
             return False
         v0 = (at(i0 + 1) - at(i0 - 1)) / (2 * dt)
-        return escapes(truth, at(i0), v0, i0 * dt, hit * dt + ESCAPE_AFTER_S, limits,
-                       np.random.default_rng(hit), hit * dt)
+        return escapes(truth, at(i0), v0, i0 * dt, t_end + dt, limits,
+                       np.random.default_rng(hit), hit * dt, go_s=WAY_OUT_GO_S)
     return leaves_way_out
+
+
+WAY_OUT_GO_S = 0.5
+"""s, the longest a way-out motion accelerates before it brakes to rest
+(:func:`forearm_way_out`)."""

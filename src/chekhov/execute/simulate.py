@@ -264,18 +264,40 @@ def _can_escape(world: World, q: Array, qd: Array, limits: Limits) -> bool:
 
 def escape_motions(q0: Array, v0: Array, limits: Limits, n: int, count: int,
                    rng: np.random.Generator, dt_s: float = ESCAPE_DT_S, *,
-                   brake: bool = True) -> Iterator[Array]:
+                   brake: bool = True, go_s: float | None = None) -> Iterator[Array]:
     """Motions within the limits from q0 (K,) rad at v0 (K,) rad/s, (n, K) each at ``dt_s``
     (s) steps: the brake (each joint decelerating at its limit; with ``brake``), then
     ``count`` with each joint at a constant acceleration drawn uniformly within its limit
-    (:func:`constant_acceleration_path`)."""
+    (:func:`constant_acceleration_path`) — with ``go_s``, for a time drawn uniformly up to
+    ``go_s`` (s), then braking to rest and resting (:func:`go_stop_path`)."""
     v0 = np.asarray(v0, dtype=float)
     if brake:
         yield constant_acceleration_path(q0, v0, -np.sign(v0) * limits.acceleration, n,
                                          dt_s, limits)
     for _ in range(count):
         acc = rng.uniform(-1, 1, len(q0)) * limits.acceleration
-        yield constant_acceleration_path(q0, v0, acc, n, dt_s, limits)
+        if go_s is None:
+            yield constant_acceleration_path(q0, v0, acc, n, dt_s, limits)
+        else:
+            yield go_stop_path(q0, v0, acc, float(rng.uniform(0.0, go_s)), n, dt_s, limits)
+
+
+def go_stop_path(q0: Array, v0: Array, acc: Array, t_go: float, n: int, dt: float,
+                 limits: Limits) -> Array:
+    """(n, K) rad: from q0 (K,) rad at velocity v0 (K,) rad/s, each joint at constant
+    acceleration ``acc`` (K,) rad/s² (velocities clipped at their limits) for ``t_go`` s,
+    then decelerating at its limit to rest, and resting; every dt (s), positions advanced by
+    each step's mean velocity (:func:`constant_acceleration_path`)."""
+    Q = np.empty((n, len(q0)))
+    Q[0], v = q0, np.asarray(v0, dtype=float)
+    for k in range(1, n):
+        if k * dt <= t_go:
+            v_next = np.clip(v + acc * dt, -limits.velocity, limits.velocity)
+        else:
+            v_next = v - np.sign(v) * np.minimum(np.abs(v), limits.acceleration * dt)
+        Q[k] = Q[k - 1] + 0.5 * (v + v_next) * dt
+        v = v_next
+    return Q
 
 
 def constant_acceleration_path(q0: Array, v0: Array, acc: Array, n: int, dt: float,
