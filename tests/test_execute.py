@@ -1274,6 +1274,25 @@ def test_the_evaluators_escape_motions_stay_within_the_limits(limits):
         assert (np.abs(a_mean) <= limits.acceleration * (1 + 1e-9)).all()
 
 
+def test_the_way_out_motions_stay_within_the_limits_and_come_to_rest(limits):
+    """The scripts' way-out rule tries motions that accelerate for a while, then brake to
+    rest (:func:`go_stop_path`): mean velocities within the velocity limits, their changes
+    within the acceleration limits, and at rest once a full stop from the velocity limit has
+    had time."""
+    from chekhov.execute.simulate import go_stop_path
+    rng = np.random.default_rng(1)
+    dt, t_go = 0.01, 0.5
+    n = round((t_go + (limits.velocity / limits.acceleration).max()) / dt) + 3
+    for _ in range(20):
+        v0 = rng.uniform(-1, 1, len(limits.velocity)) * limits.velocity
+        acc = rng.uniform(-1, 1, len(v0)) * limits.acceleration
+        Q = go_stop_path(np.zeros(len(v0)), v0, acc, rng.uniform(0, t_go), n, dt, limits)
+        v_mean = np.diff(Q, axis=0) / dt
+        assert (np.abs(v_mean) <= limits.velocity * (1 + 1e-9)).all()
+        assert (np.abs(np.diff(v_mean, axis=0)) / dt <= limits.acceleration * (1 + 1e-9)).all()
+        assert np.array_equal(Q[-1], Q[-2])
+
+
 def test_a_join_from_full_velocity_and_outward_acceleration_keeps_the_velocity_limit(limits):
     """A timed plan's cruise begins at full velocity with the ramp's full acceleration (its
     acceleration switches there); joined from that state, Ruckig first had to bring the
@@ -1453,3 +1472,34 @@ def test_a_forearm_that_leaves_the_arm_no_way_out_is_drawn_again(world, planner,
     n = hit - i0 + round(ESCAPE_AFTER_S / dt)
     brake = next(escape_motions(Q[i0], v0, limits, n, 0, np.random.default_rng(0), dt))
     assert any(truth.collides(q, (i0 + k) * dt) for k, q in enumerate(brake))
+
+
+def test_the_way_out_must_hold_until_the_forearm_is_gone(monkeypatch):
+    """shelf_boxes seed 1 episode 3's first forearm leaves the arm a way out of its first
+    contact — from the motion's state one reaction window after it appears, a constant
+    acceleration the after-the-fact verdict would take is free until 0.3 s after it — but its
+    sweep ends beside the shoulder, where at least half of the arm's free configurations
+    touch it: the executive's arm came to rest there and was hit in every run. The rule
+    asks for a way out until the forearm is gone, and rejects it."""
+    from chekhov.execute import benchmark
+    from chekhov.execute.evaluate import ESCAPE_AFTER_S, escapes
+
+    world = World.load("shelf_boxes")
+    planner = executive_planner("Roadmap+TrajOpt", world)
+    config = ReactConfig(seed=1)
+    rule, judged = benchmark.script_way_out(world, config), []
+    monkeypatch.setattr(benchmark, "script_way_out", lambda w, c: lambda *a: judged.append(
+        (*a, rule(*a))) or judged[-1][-1])
+    assert benchmark.episode_script(world, planner, config, 3) is not None
+    arm, duration_s, Q, accepted = judged[0]
+    assert not accepted and judged[-1][-1]
+    truth, dt = TrueWorld(world, arm), duration_s / (len(Q) - 1)
+    hit = next(i for i in range(len(Q)) if truth.collides(Q[i], i * dt))
+    i0 = math.ceil((arm[0].t_start + benchmark.reaction_window_s(config)) / dt)
+    limits = joint_limits(world.robot.velocity_limit, config.executor.timing)
+    assert escapes(truth, Q[i0], (Q[i0 + 1] - Q[i0 - 1]) / (2 * dt), i0 * dt,
+                   hit * dt + ESCAPE_AFTER_S, limits, np.random.default_rng(hit), hit * dt)
+    free = world.robot.sample_uniform(np.random.default_rng(0), 600)
+    free = free[[world.exact.is_valid(q) for q in free]][:200]
+    t_late = arm[0].t_end - 0.08
+    assert np.mean([truth.collides(q, t_late) for q in free]) >= 0.5
