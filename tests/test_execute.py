@@ -386,6 +386,46 @@ def test_a_kick_leaves_a_moving_arm_a_motion_within_the_limits_that_escapes(worl
     assert kept >= 4 and changed >= 4
 
 
+def test_a_kick_never_throws_the_arm_into_the_forearms_way(world, limits):
+    """A kick must leave the arm a way out of the forearm's true motion too: thrown where a
+    ball (0.06 m, 1 m/s) passes 60 ms later — no motion within the limits from rest gets the
+    hand 0.1 m aside that soon — the kick is shrunk or dropped, and what is kept leaves one
+    of the kick's escape motions clear of the ball and the scene for 0.5 s (exact checker, 1
+    ms steps); the same ball 1 m away changes no kick."""
+    from chekhov.execute.truth import TrueWorld
+    robot = world.robot
+    world.fast.set_obstacles({})
+    world.exact.set_obstacles({})
+    rng = np.random.default_rng(5)
+    ball = Shape("sphere", (0.06,))
+    shrunk = 0
+    for index in range(6):
+        q = start_and_goal(world, 0, index)[0]
+        dq = rng.uniform(-0.1, 0.1, robot.dof)
+        zero = np.zeros(robot.dof)
+        if not np.array_equal(shrunk_kick(world, q, zero, dq, 4, limits), dq):
+            continue                         # shrunk for the scene alone: not this test's
+        p_hand = robot.compute_ee_pose(q + dq)[:3, 3]
+        way = np.array([1.0, 0.0, 0.0])
+        for offset, near in ((np.zeros(3), True), (np.array([0.0, 0.0, 1.0]), False)):
+            p = p_hand + offset
+            truth = TrueWorld(world, (MovingObstacle("ball", ball, np.eye(3), p - 0.06 * way,
+                                                     p + 0.5 * way, 0.0, 1.0),))
+            kept = shrunk_kick(world, q, zero, dq, 4, limits, truth, 0.0)
+            if not near:
+                assert np.array_equal(kept, dq)
+                continue
+            assert kept is None or np.abs(kept).max() < np.abs(dq).max()
+            shrunk += 1
+            if kept is not None:         # a way out, at 10x finer steps
+                ts = np.arange(0, 0.501, 1e-3)
+                assert any(robot.within_limits(Q).all() and not any(
+                    truth.collides(x, t) or not world.exact.is_valid(x) for x, t in
+                    zip(Q, ts, strict=True)) for Q in escape_motions(
+                    q + kept, zero, limits, len(ts), 256, np.random.default_rng(0), 1e-3))
+    assert shrunk >= 3
+
+
 def test_a_kicked_arm_whose_join_back_is_free_is_joined_back_at_once(world, limits):
     """The immediate motion after a kick in open space is the join back (the first smooth
     move the fast checker calls free), not a stop or a swerve."""

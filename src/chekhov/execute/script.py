@@ -11,7 +11,7 @@ and is shrunk (halved, up to 4 times, when it lands:
 :func:`~chekhov.execute.simulate.shrunk_kick`) until the kicked configuration is within the
 limits and collision-free, so is the kicked arm going on at its velocity for 0.1 s, and one
 motion within the limits from the kicked state (a brake, or a constant acceleration) stays
-free for 0.5 s. The
+free of the scene and of the forearm's true motion for 0.5 s. The
 forearm appears at least 0.3 m from the arm as it is then in the motion it is aimed at (the
 task with its goal change, when :func:`make_script` is given how to run it; else the
 undisturbed motion), so its first frame is no contact already; and, when the script is given a

@@ -35,6 +35,7 @@ from chekhov.execute.interface import Counters, Observation, Reaction
 from chekhov.execute.motion import Motion, State
 from chekhov.execute.obstacles import MovingObstacle, Obstacles, obstacles_at
 from chekhov.execute.script import EpisodeScript
+from chekhov.execute.truth import TrueWorld
 from chekhov.robot.goal import Goal
 from chekhov.timing import Limits
 from chekhov.world import World
@@ -108,13 +109,14 @@ def run_episode(world: World, executor: Executor, script: EpisodeScript, deadlin
     next_frame, reached_at, lagged = 0, None, False
     following: Motion | None = None     # what the arm is tracking (the loop's commands)
     qdd = np.zeros_like(q)
+    truth = TrueWorld(world, script.obstacles) if script.obstacles and kicks else None
     i, n_ticks = 0, int(np.ceil(deadline_s / dt)) + 1
     while i < n_ticks:
         t = i * dt
         kicked = False
         while kicks and kicks[0].t <= t + 1e-9:
             dq = shrunk_kick(world, q, qd, kicks.pop(0).dq, config.kick_halvings,
-                             executor.limits)
+                             executor.limits, truth, t)
             if dq is not None:
                 q, kicked = q + dq, True
                 applied.append(dq)
@@ -210,7 +212,8 @@ def _relabel_lag(reactions: list[Reaction], first_new: int, kicked: bool) -> Non
 
 
 def shrunk_kick(world: World, q: Array, qd: Array, dq: Array, halvings: int,
-                limits: Limits) -> Array | None:
+                limits: Limits, truth: TrueWorld | None = None, t: float = 0.0
+                ) -> Array | None:
     """``dq`` (K,) rad, halved until q + dq is within the limits — and so is where it comes to
     rest braking at ``limits.acceleration`` from velocity ``qd`` (a bump does not throw the arm
     past a limit) — and the kicked arm has a way out: going on at ``qd`` for
@@ -220,13 +223,16 @@ def shrunk_kick(world: World, q: Array, qd: Array, dq: Array, halvings: int,
     one of :func:`escape_motions` for :data:`KICK_ESCAPE_S` (fast checker, which is
     conservative: tabletop_container episode 16 had the arm kicked at 1.5 rad/s towards the
     container, where going on for 0.1 s was free but no brake or other motion within the
-    limits was, and it hit the container); or None."""
+    limits was, and it hit the container) — with ``truth`` (the episode's moving obstacles;
+    the kick comes at time ``t`` s), free of their true motion too (exact checker:
+    shelf_boxes seed 3 episode 8 had the arm kicked 0.1 s from the forearm, where no motion
+    escaped it); or None."""
     stop = qd * np.abs(qd) / (2 * limits.acceleration)
     for _ in range(halvings + 1):
         q2 = q + dq
         if world.robot.within_limits(np.vstack([q2, q2 + stop])).all() and \
                 world.exact.is_valid(q2) and _goes_on_free(world, q2, qd) and \
-                _can_escape(world, q2, qd, limits):
+                _can_escape(world, q2, qd, limits, truth, t):
             return dq
         dq = dq / 2
     return None
@@ -251,15 +257,28 @@ def _goes_on_free(world: World, q: Array, qd: Array) -> bool:
                                     substeps).valid)
 
 
-def _can_escape(world: World, q: Array, qd: Array, limits: Limits) -> bool:
+def _can_escape(world: World, q: Array, qd: Array, limits: Limits,
+                truth: TrueWorld | None = None, t: float = 0.0) -> bool:
     """Whether one of :func:`escape_motions` from (q, qd) stays within the joint limits and
-    fast-free (so exactly free) for :data:`KICK_ESCAPE_S`, at 10 ms steps."""
+    fast-free (so exactly free) for :data:`KICK_ESCAPE_S`, at 10 ms steps — and, with
+    ``truth``, free of its moving obstacles' true motion from time ``t`` (s)."""
     n = round(KICK_ESCAPE_S / ESCAPE_DT_S) + 1
     robot = world.robot
     for Q in escape_motions(q, qd, limits, n, KICK_ESCAPES, np.random.default_rng(0)):
-        if robot.within_limits(Q).all() and world.fast.valid(Q).all():
+        if robot.within_limits(Q).all() and world.fast.valid(Q).all() and \
+                _clear_of(truth, Q, t):
             return True
     return False
+
+
+def _clear_of(truth: TrueWorld | None, Q: Array, t: float) -> bool:
+    """Whether the motion Q (n, K) rad, from time t (s) at :data:`ESCAPE_DT_S` steps, never
+    meets ``truth``'s moving obstacles (every fourth step checked first)."""
+    if truth is None:
+        return True
+    steps = [k for k in range(1, len(Q)) if truth.present(t + k * ESCAPE_DT_S)]
+    steps.sort(key=lambda k: k % 4 != 0)
+    return not any(truth.collides(Q[k], t + k * ESCAPE_DT_S) for k in steps)
 
 
 def escape_motions(q0: Array, v0: Array, limits: Limits, n: int, count: int,

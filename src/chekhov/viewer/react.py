@@ -41,6 +41,7 @@ from chekhov.execute.motion import Motion
 from chekhov.execute.obstacles import MovingObstacle, Obstacles, obstacles_at
 from chekhov.execute.script import EpisodeScript, make_script, start_and_goal
 from chekhov.execute.simulate import SimConfig, shrunk_kick
+from chekhov.execute.truth import TrueWorld
 from chekhov.execute.worker import ThreadWorker
 from chekhov.planners.base import Planner
 from chekhov.robot.goal import Goal
@@ -176,12 +177,14 @@ class LiveEpisode:
         self.kicks = list(script.kicks)
         self.changes = list(script.goal_changes)
         self.kicks_applied: list[Array] = []
+        self._truth = TrueWorld(world, script.obstacles) if script.obstacles and self.kicks \
+            else None
 
     def step(self, t: float, dragged: Obstacles) -> Command:
         """The executive's command for the tick at t (s), after what happened by then."""
         while self.kicks and self.kicks[0].t <= t + 1e-9:
             dq = shrunk_kick(self.world, self.q, self.qd, self.kicks.pop(0).dq,
-                             self.sim.kick_halvings, self.executor.limits)
+                             self.sim.kick_halvings, self.executor.limits, self._truth, t)
             if dq is not None:
                 self.q = self.q + dq
                 self.kicks_applied.append(dq)
