@@ -15,6 +15,9 @@
   until :data:`ESCAPE_AFTER_S` after the contact; none collision-free means no motion within
   the limits could have avoided it.
 
+The scripts' rule that a forearm leaves the arm a way out (:func:`forearm_way_out`) is judged
+by the same escapes, before the episode runs.
+
 Units: s, rad, m.
 """
 
@@ -168,7 +171,11 @@ def forearm_way_out(world: World, window_s: float, limits: Limits) -> WayOut:
         t_start, t_end = min(m.t_start for m in arm), max(m.t_end for m in arm)
         truth = TrueWorld(world, arm)
         n = int(np.ceil(max(t_end, duration_s) / dt)) + 1
-        at = lambda i: q_path[min(i, len(q_path) - 1)]  # noqa: E731 — rests at its end
+
+        def at(i: int) -> Array:
+            """The motion's configuration at tick i, resting at its end once there."""
+            return q_path[min(i, len(q_path) - 1)]
+
         hit = next((i for i in range(int(t_start / dt), n)
                     if truth.collides(at(i), i * dt)), None)
         if hit is None:
