@@ -136,18 +136,14 @@ def escapes(truth: TrueWorld, q0: Array, v0: Array, t0: float, t_until: float,
     constant acceleration drawn within its limit, velocities clipped; with ``go_s``, for a
     time drawn up to ``go_s`` s, then braking to rest: :func:`escape_motions`) from q0 (K,)
     rad at v0 (K,) rad/s at time t0 stays within the joint limits and free of ``truth`` at
-    every 10 ms step until ``t_until`` (s). Each motion's steps are checked nearest
-    ``t_first`` (s; a contact expected then) first, every fourth step before the rest (a
-    contact lasts several steps): a motion that does not escape is mostly found out in a
-    few checks (the verdict is the same in any order)."""
+    every 10 ms step until ``t_until`` (s); each checked nearest ``t_first`` (s, a contact
+    expected then) first (:meth:`TrueWorld.meets`)."""
     ts = t0 + np.arange(0.0, t_until - t0, 0.01)[1:]
-    order = np.lexsort((np.abs(ts - (t0 if t_first is None else t_first)),
-                        np.arange(len(ts)) % 4 != 0))
     for Q in escape_motions(q0, v0, limits, len(ts) + 1, ESCAPES, rng, 0.01, brake=False,
                             go_s=go_s):
         Q = Q[1:]
         if truth.robot.within_limits(Q, tol=0.0).all() and \
-                not any(truth.collides(Q[i], float(ts[i])) for i in order):
+                not truth.meets(Q, ts, t0 if t_first is None else t_first):
             return True
     return False
 

@@ -265,20 +265,11 @@ def _can_escape(world: World, q: Array, qd: Array, limits: Limits,
     n = round(KICK_ESCAPE_S / ESCAPE_DT_S) + 1
     robot = world.robot
     for Q in escape_motions(q, qd, limits, n, KICK_ESCAPES, np.random.default_rng(0)):
-        if robot.within_limits(Q).all() and world.fast.valid(Q).all() and \
-                _clear_of(truth, Q, t):
+        if robot.within_limits(Q).all() and world.fast.valid(Q).all() and (
+                truth is None or not truth.meets(Q[1:], t + ESCAPE_DT_S * np.arange(1.0, n),
+                                                 while_present=True)):
             return True
     return False
-
-
-def _clear_of(truth: TrueWorld | None, Q: Array, t: float) -> bool:
-    """Whether the motion Q (n, K) rad, from time t (s) at :data:`ESCAPE_DT_S` steps, never
-    meets ``truth``'s moving obstacles (every fourth step checked first)."""
-    if truth is None:
-        return True
-    steps = [k for k in range(1, len(Q)) if truth.present(t + k * ESCAPE_DT_S)]
-    steps.sort(key=lambda k: k % 4 != 0)
-    return not any(truth.collides(Q[k], t + k * ESCAPE_DT_S) for k in steps)
 
 
 def escape_motions(q0: Array, v0: Array, limits: Limits, n: int, count: int,

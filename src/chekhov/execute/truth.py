@@ -47,6 +47,19 @@ class TrueWorld:
         self.at(t)
         return not self.checker.is_valid(q)
 
+    def meets(self, Q: Array, ts: Array, t_first: float | None = None, *,
+              while_present: bool = False) -> bool:
+        """Whether the motion Q (n, K) rad, at times ts (n,) s, collides at any of them
+        (with ``while_present``, only times a moving obstacle is present are checked).
+        Every fourth time is checked before the rest, each group nearest ``t_first`` (s; a
+        contact expected then; ts[0] by default) first: a motion that collides is mostly
+        found out in a few checks (the answer is the same in any order)."""
+        idx = np.flatnonzero([self.present(float(t)) for t in ts]) if while_present \
+            else np.arange(len(ts))
+        t_ref = ts[0] if t_first is None or not len(ts) else t_first
+        order = idx[np.lexsort((np.abs(ts[idx] - t_ref), idx % 4 != 0))]
+        return any(self.collides(Q[i], float(ts[i])) for i in order)
+
     def clearance(self, q: Array, t: float) -> float:
         """m, the distance from the robot's moving geometry to the present moving obstacles."""
         present = [(g, m) for g, m in self._geoms if m.present(t)]
