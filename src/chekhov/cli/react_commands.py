@@ -15,7 +15,8 @@ e.g. a robot's onboard computer; the executive's wall-clock budgets are not scal
 
 Output: with ``--json`` one JSON object per scene and planner on stdout (keys: scene,
 planner, episodes, success_rate — goal reached within tolerance before the deadline, among
-the episodes whose undisturbed run reaches it (reachable_episodes) —, collision_episodes,
+the episodes whose undisturbed run reaches it (reachable_episodes) —, forearm_episodes (those
+whose script has a forearm: none when 50 draws left no way out), collision_episodes,
 unavoidable_collision_episodes, min_clearance_m and p5_clearance_m (over episodes' minimum
 distance to the moving obstacles), reaction_latency_ms_p50/_p95/_p99 (disturbance observed →
 first answering motion commanded: a rejoin, a hold short of the conflict, a brake, a dodge

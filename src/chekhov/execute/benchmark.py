@@ -231,6 +231,7 @@ def summarize(scene: str, planner: str, results: list[EpisodeResult | None],
         "unreachable_why": "the first planner's undisturbed run did not reach the goal"
         if len(results) > len(done) else "",
         "undisturbed_failures": sum(r.undisturbed_s is None for r in done),
+        "forearm_episodes": sum(bool(r.script.obstacles) for r in done),
         "collision_episodes": len(collided),
         "unavoidable_collision_episodes": sum(r.check.unavoidable for r in collided),
         "min_clearance_m": min(mins) if mins else None,

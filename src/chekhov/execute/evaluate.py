@@ -152,10 +152,14 @@ def forearm_way_out(world: World, window_s: float, limits: Limits) -> WayOut:
     """The script's rule that a forearm leaves the arm a way out
     (:data:`~chekhov.execute.script.WayOut`): the arm going on along the motion the forearm is
     aimed at (resting at its end once there) never touches it, or, from that motion's state
-    one reaction window (``window_s`` s: sensor period + latency + planning budget) after the
-    forearm appears — before any reaction to it can have begun —, one of :data:`ESCAPES`
-    motions within ``limits`` (each joint at a constant acceleration drawn within its limit
-    for up to :data:`WAY_OUT_GO_S`, then braking to rest) is free of it until it is gone. A
+    at one of :data:`WAY_OUT_STARTS` instants (:func:`_way_out_ticks`) between one reaction
+    window (``window_s`` s: sensor period + latency + planning budget) after the forearm
+    appears — before any reaction to it can have begun — and one before the motion's first
+    contact, one of :data:`ESCAPES` motions within ``limits`` (each joint at a constant
+    acceleration drawn within its limit for up to :data:`WAY_OUT_GO_S`, then braking to rest)
+    is free of it until it is gone. A forearm that enters from beyond the arm's reach is seen
+    seconds before it arrives; an arm braking to rest as soon as it is seen would often sit
+    where it passes, and the way out is to go on and get away later. A
     forearm appearing 0.3 m from an arm moving towards it had left none (panda_cage seed 0
     episode 0, tabletop_pole seed 1 episode 2: 0 of 256 constant accelerations escaped from
     there); nor had one whose sweep ends beside the shoulder, where 64% of the arm's free
@@ -176,15 +180,28 @@ def forearm_way_out(world: World, window_s: float, limits: Limits) -> WayOut:
                     if truth.collides(at(i), i * dt)), None)
         if hit is None:
             return True
-        i0 = int(np.ceil((t_start + window_s) / dt))
-        if i0 >= hit:
-            return False
-        v0 = (at(i0 + 1) - at(i0 - 1)) / (2 * dt)
-        return escapes(truth, at(i0), v0, i0 * dt, t_end + dt, limits,
-                       np.random.default_rng(hit), hit * dt, go_s=WAY_OUT_GO_S)
+        first = int(np.ceil((t_start + window_s) / dt))
+        last = hit - int(np.ceil(window_s / dt))
+        rng = np.random.default_rng(hit)
+        for i0 in _way_out_ticks(first, max(last, first), hit):
+            v0 = (at(i0 + 1) - at(i0 - 1)) / (2 * dt)
+            if escapes(truth, at(i0), v0, i0 * dt, t_end + dt, limits, rng, hit * dt,
+                       go_s=WAY_OUT_GO_S):
+                return True
+        return False
     return leaves_way_out
 
 
+def _way_out_ticks(first: int, last: int, hit: int) -> list[int]:
+    """The ticks from which :func:`forearm_way_out` looks for a way out: up to
+    :data:`WAY_OUT_STARTS` evenly from ``first`` to ``last`` (earliest first), all before the
+    contact tick ``hit``: going on along the motion until one of them, which is free of the
+    forearm until ``hit``, is a motion within the limits too."""
+    ticks = np.unique(np.linspace(first, last, WAY_OUT_STARTS).round().astype(int))
+    return [int(i) for i in ticks if i < hit]
+
+
 WAY_OUT_GO_S = 0.5
+WAY_OUT_STARTS = 4
 """s, the longest a way-out motion accelerates before it brakes to rest
 (:func:`forearm_way_out`)."""

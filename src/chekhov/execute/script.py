@@ -12,11 +12,15 @@ and is shrunk (halved, up to 4 times, when it lands:
 limits and collision-free, so is the kicked arm going on at its velocity for 0.1 s, and one
 motion within the limits from the kicked state (a brake, or a constant acceleration) stays
 free of the scene and of the forearm's true motion for 0.5 s. The
-forearm appears at least 0.3 m from the arm as it is then in the motion it is aimed at (the
-task with its goal change, when :func:`make_script` is given how to run it; else the
-undisturbed motion), so its first frame is no contact already; and, when the script is given a
-rule for it (``way_out``: :func:`~chekhov.execute.evaluate.forearm_way_out`), the arm in that
-motion could still get away from it one reaction window after it appears. Units: s, m, rad.
+forearm enters from beyond the arm's reach, where no route the executed arm may have taken
+can put the arm on it (before 2026-12-02 it appeared 0.3 m from the arm in the motion it was
+aimed at, and twice in 60 episodes on an arm that had gone another way); one that would have
+had to set out before the episode begins is there from :data:`FIRST_APPEAR_S`, at least
+0.3 m from the arm as it is then in the motion it is aimed at (the task with its goal change,
+when :func:`make_script` is given how to run it; else the undisturbed motion) — the arm has
+then hardly left its start. When the script is given a rule for it (``way_out``:
+:func:`~chekhov.execute.evaluate.forearm_way_out`), the arm in that motion could still get
+away from it. Units: s, m, rad.
 """
 
 from __future__ import annotations
@@ -41,6 +45,8 @@ BASE_CLEARANCE_M = 0.3
 SHOULDER_CLEARANCE_M = 0.15
 APPEAR_CLEARANCE_M = 0.3
 SWEEP_M = 1.2
+REACH_MARGIN_M = 0.15
+FIRST_APPEAR_S = 0.05
 KICK_RAD = 0.1
 SPEED_MPS = (0.3, 1.0)
 
@@ -149,23 +155,28 @@ def _forearm(world: World, rng: np.random.Generator, duration_s: float, ee_path:
              q_path: Array | None, way_out: WayOut | None = None
              ) -> tuple[MovingObstacle, ...]:
     """A capsule crossing the end-effector path near a random point of it, in a random
-    horizontal direction, at a random speed; redrawn while its sweep comes nearer than
-    :data:`BASE_CLEARANCE_M` to the base, it appears nearer than :data:`APPEAR_CLEARANCE_M`
-    to the arm, or (with ``way_out``) it leaves the arm no way out."""
+    horizontal direction, at a random speed, entering from beyond the arm's reach
+    (:func:`_lead_in_m`) — or, when it would have to set out before the episode starts, there
+    at :data:`FIRST_APPEAR_S` where it would then be; redrawn while its sweep comes nearer
+    than :data:`BASE_CLEARANCE_M` to the base, it appears nearer than
+    :data:`APPEAR_CLEARANCE_M` to the arm, or (with ``way_out``) it leaves the arm no way
+    out."""
     base = world.robot.T_world_base[:3, 3]
-    shoulder = world.robot.reach[0]
+    shoulder, reach_m = world.robot.reach
     for _ in range(50):
         u = float(rng.uniform(0.3, 0.8))
         p = ee_path[min(int(u * len(ee_path)), len(ee_path) - 1)] + rng.uniform(-0.1, 0.1, 3)
         a = float(rng.uniform(0, 2 * np.pi))
         d = np.array([np.cos(a), np.sin(a), 0.0])
-        p0, p1 = p - d * SWEEP_M / 2, p + d * SWEEP_M / 2
-        if _horizontal_distance(base, p0, p1) < BASE_CLEARANCE_M or \
-                _horizontal_distance(shoulder, p0, p1) < SHOULDER_CLEARANCE_M:
+        lead = _lead_in_m(p - shoulder, d, reach_m)
+        p_far, p1 = p - d * lead, p + d * SWEEP_M / 2
+        if _horizontal_distance(base, p_far, p1) < BASE_CLEARANCE_M or \
+                _horizontal_distance(shoulder, p_far, p1) < SHOULDER_CLEARANCE_M:
             continue
         speed = float(rng.uniform(*SPEED_MPS))
         t_cross = u * duration_s
-        t0 = max(t_cross - SWEEP_M / 2 / speed, 0.05)
+        t0 = max(t_cross - lead / speed, FIRST_APPEAR_S)
+        p0 = p - d * (t_cross - t0) * speed
         axis = float(rng.uniform(0, np.pi))
         R = _axis_rotation(np.array([np.cos(axis), np.sin(axis), 0.0]))
         half = R[:, 2] * FOREARM_LENGTH_M / 2
@@ -180,6 +191,19 @@ def _forearm(world: World, rng: np.random.Generator, duration_s: float, ee_path:
         if way_out is None or q_path is None or way_out(arm, duration_s, q_path):
             return arm
     return ()
+
+
+def _lead_in_m(p_from_shoulder: Array, d: Array, reach_m: float) -> float:
+    """m, how far back along the unit direction d (3,) from the point ``p_from_shoulder``
+    (3,) m from the arm's first joint the forearm sets out: at least half a sweep
+    (:data:`SWEEP_M`), and far enough that no part of it is within the arm's reach
+    (``reach_m``, of its end-effector frame, plus :data:`REACH_MARGIN_M` for the hand and
+    the forearm's half length and radius): where it appears, no arm can be, whatever route
+    the arm has taken."""
+    r = reach_m + REACH_MARGIN_M + FOREARM_LENGTH_M / 2 + FOREARM_RADIUS_M
+    w_d = float(p_from_shoulder @ d)
+    disc = w_d * w_d - float(p_from_shoulder @ p_from_shoulder) + r * r
+    return max(SWEEP_M / 2, w_d + float(np.sqrt(disc)) if disc > 0.0 else 0.0)
 
 
 def _arm_distance(world: World, q_path: Array, u: float, a: Array, b: Array) -> float:
