@@ -1591,3 +1591,39 @@ def test_the_way_out_must_hold_until_the_forearm_is_gone(world, planner, limits)
     assert len(free) == 200
     assert all(truth.collides(q, arm[0].t_end) for q in free)
     assert not benchmark.script_way_out(world, config)(arm, T, Q)
+
+
+def test_while_no_plan_to_a_new_goal_exists_the_arm_brakes(world, planner):
+    """A goal change whose every plan fails (a worker that answers ``no_ik`` for the new
+    goal): the arm brakes to a stop along its motion and waits, instead of going on to the
+    goal no longer wanted (it had, and so reached the old goal); the goal's reaction is that
+    brake, one planning budget and a tick or two after the change. By the executed motion
+    itself: at rest within a second of the change, short of the old goal."""
+    from chekhov.execute.benchmark import checking_world
+    from chekhov.execute.executor import Executor
+    from chekhov.execute.simulate import run_episode
+    from chekhov.execute.worker import InlineWorker
+
+    goal = _script(world, 0).goal
+    plain = run_one(world, planner, _script(world, 0), 20.0, CONFIG)
+    t_change = 0.4 * plain.t_reached
+    new_goal = start_and_goal(world, 0, 1)[1]
+
+    class RefusesNewGoal(InlineWorker):
+        def poll(self, now):
+            reply = super().poll(now)
+            if reply is not None and reply.request.goal is new_goal:
+                return replace(reply, trajectory=None, status="no_ik")
+            return reply
+
+    script = _script(world, 0, goal_changes=(GoalChange(t_change, new_goal, "new"),))
+    worker = RefusesNewGoal(world, planner, CONFIG.executor.timing)
+    executor = Executor(checking_world(world), worker, goal, CONFIG.executor)
+    rec = run_episode(world, executor, script, t_change + 2.0, CONFIG.sim)
+    assert not rec.reached and rec.counters.failed_plans >= 2
+    (r,) = [r for r in rec.reactions if r.kind == "goal"]
+    assert r.t_reacted is not None and r.t_reacted - r.t_observed <= 0.08
+    after = rec.times >= t_change + 1.0
+    assert np.abs(rec.qd[after]).max() < 1e-6
+    assert not _meets(world, rec.q[-1], goal)
+    assert np.abs(rec.q[-1] - plain.q[-1]).max() > 0.05
