@@ -202,6 +202,7 @@ def _way_out_ticks(first: int, last: int, hit: int) -> list[int]:
 
 
 WAY_OUT_GO_S = 0.5
-WAY_OUT_STARTS = 4
 """s, the longest a way-out motion accelerates before it brakes to rest
 (:func:`forearm_way_out`)."""
+WAY_OUT_STARTS = 4
+"""How many states along the aimed motion :func:`forearm_way_out` looks for a way out from."""
