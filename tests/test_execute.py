@@ -787,8 +787,7 @@ def test_the_forearm_enters_from_beyond_the_arms_reach(world, planner):
     """A forearm sets out where no configuration of the arm touches it — 400 random ones,
     free or not, so whatever route the executed arm has taken (coal's distance at the instant
     it appears) — or, when it would have had to set out before the episode began, is there at
-    ``FIRST_APPEAR_S``, clear of the arm at its start, and crosses the aimed point then as
-    drawn: half a sweep before its end either way. Two Panda scenes (the Panda's reach is
+    ``FIRST_APPEAR_S``, clear of the arm at its start. Two Panda scenes (the Panda's reach is
     short enough that some forearms set out within the episode) and the pole's table."""
     seen = {"far": 0, "early": 0}
     for name in ("panda_cage", "panda_table_shelf", "tabletop_pole"):
