@@ -297,7 +297,7 @@ def go_stop_path(q0: Array, v0: Array, acc: Array, t_go: float, n: int, dt: floa
     """(n, K) rad: from q0 (K,) rad at velocity v0 (K,) rad/s, each joint at constant
     acceleration ``acc`` (K,) rad/s² (velocities clipped at their limits) for ``t_go`` s,
     then decelerating at its limit to rest, and resting; every dt (s), positions advanced by
-    each step's mean velocity (:func:`constant_acceleration_path`)."""
+    each step's mean velocity (:func:`constant_acceleration_path`: why)."""
     Q = np.empty((n, len(q0)))
     Q[0], v = q0, np.asarray(v0, dtype=float)
     for k in range(1, n):
@@ -316,11 +316,6 @@ def constant_acceleration_path(q0: Array, v0: Array, acc: Array, n: int, dt: flo
     acceleration ``acc`` (K,) rad/s² until its velocity limit, every dt (s). Exact for that
     motion (velocity linear over each step: its positions advance by the step's mean
     velocity), so it stays within the acceleration limits; integrating with the step's end
-    velocity would move up to twice as far in the first step."""
-    Q = np.empty((n, len(q0)))
-    Q[0], v = q0, np.asarray(v0, dtype=float)
-    for k in range(1, n):
-        v_next = np.clip(v + acc * dt, -limits.velocity, limits.velocity)
-        Q[k] = Q[k - 1] + 0.5 * (v + v_next) * dt
-        v = v_next
-    return Q
+    velocity would move up to twice as far in the first step (:func:`go_stop_path` that
+    never stops)."""
+    return go_stop_path(q0, v0, acc, np.inf, n, dt, limits)
