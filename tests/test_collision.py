@@ -372,21 +372,32 @@ def test_convex_gap_is_a_lower_bound_on_the_distance_that_converges():
         pb = pa + (ra + rb + gap) * u
         sa, sb = np.array([ra, 0.0, 0.0]), np.array([rb, 0.0, 0.0])
         eye = np.eye(3)
-        got = convex_gap(SPHERE, eye, pa, sa, V, 0, 0, pa, SPHERE, eye, pb, sb, V, 0, 0, pb, 1.0)
+        got = convex_gap(SPHERE, eye, pa, sa, V, 0, 0, pa, SPHERE, eye, pb, sb, V, 0, 0, pb, 1.0,
+                         1.0)
         if gap <= 0:
             assert got <= 1e-9
         else:
             assert gap - 1e-6 <= got <= gap + 1e-12
             early = convex_gap(SPHERE, eye, pa, sa, V, 0, 0, pa, SPHERE, eye, pb, sb, V, 0, 0,
-                               pb, 0.5 * gap)
+                               pb, 0.5 * gap, 0.5 * gap)
             assert 0.5 * gap < early <= gap + 1e-12
     # two unit-half-extent boxes, faces 3 cm apart, the second turned about the gap's axis
     c, s = np.cos(0.4), np.sin(0.4)
     Rz = np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
     half = np.full(3, 0.5)
     pa, pb = np.zeros(3), np.array([1.03, 0.0, 0.0])
-    got = convex_gap(BOX, np.eye(3), pa, half, V, 0, 0, pa, BOX, Rz, pb, half, V, 0, 0, pb, 1.0)
+    got = convex_gap(BOX, np.eye(3), pa, half, V, 0, 0, pa, BOX, Rz, pb, half, V, 0, 0, pb, 1.0,
+                     1.0)
     assert 0.03 - 1e-6 <= got <= 0.03 + 1e-12
+    # a cube 10 cm beside a long bar's side, off its centre's direction: stopped at the first
+    # point of A − B within 1 m, GJK gives the bound along that direction only; converged
+    # (near < 0), the distance
+    bar, cube = np.array([0.5, 0.05, 0.05]), np.full(3, 0.05)
+    pb = np.array([0.45, 0.2, 0.0])
+    eye = np.eye(3)
+    first = convex_gap(BOX, eye, pa, bar, V, 0, 0, pa, BOX, eye, pb, cube, V, 0, 0, pb, 1.0, 1.0)
+    full = convex_gap(BOX, eye, pa, bar, V, 0, 0, pa, BOX, eye, pb, cube, V, 0, 0, pb, 1.0, -1.0)
+    assert first <= full + 1e-12 and 0.1 - 1e-6 <= full <= 0.1 + 1e-12
 
 
 @pytest.mark.parametrize("scene", ["panda_cage", "tabletop_pole"])

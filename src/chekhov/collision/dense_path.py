@@ -229,7 +229,7 @@ def _obstacle_gap(g, c, r, target, kind, R, p, size, ck, V, vs, cen, allow, gk, 
             if signed_distance(kind[o], R[o], p[o], size[o], cw) >= hrad[k] + gap:
                 continue   # the primitive holds the confirmation shape: that far from it too
             gap = min(gap, convex_gap(gk[g], Rg, pg, gsize[g], hv, vstart[k], vstart[k + 1], cw,
-                                      ck[o], R[o], p[o], size[o], V, v0, v1, cb, gap))
+                                      ck[o], R[o], p[o], size[o], V, v0, v1, cb, gap, gap))
             if gap <= 0.0:
                 return gap
     return gap
@@ -377,8 +377,8 @@ def _walk(P, t0, t1, n, m_first, m_last, check_ends, world, work, ww
             d = _pair_gap(start, sr, swc, a, b)
             if d <= 0.0:   # overlapping spheres: the covered geometries' gap, past the pads
                 pads = gpad[a] + gpad[b]
-                d = geometry_gap(geo, gj, Rc, pc, a, b, pads + GAP_LOOK * pair_sphere_step[k],
-                                  Rw, pw, cw) - pads
+                look = pads + GAP_LOOK * pair_sphere_step[k]
+                d = geometry_gap(geo, gj, Rc, pc, a, b, look, look, Rw, pw, cw) - pads
             if d > 0.0:
                 puntil[k] = m + int(d / pair_sphere_step[k])
             else:

@@ -239,18 +239,19 @@ def convex_collide(ka, Ra, pa, sa, Va, a0, a1, ca, kb, Rb, pb, sb, Vb, b0, b1, c
     Each shape is (kind, R, p, size, V, v0, v1) as in :func:`support_point`, and a point of it
     (world, m) to start from: ca, cb (e.g. its centre)."""
     return convex_gap(ka, Ra, pa, sa, Va, a0, a1, ca, kb, Rb, pb, sb, Vb, b0, b1, cb,
-                      pad) <= pad + 1e-9
+                      pad, pad) <= pad + 1e-9
 
 
 @njit(cache=True, nogil=True, inline="always")
-def convex_gap(ka, Ra, pa, sa, Va, a0, a1, ca, kb, Rb, pb, sb, Vb, b0, b1, cb, target
+def convex_gap(ka, Ra, pa, sa, Va, a0, a1, ca, kb, Rb, pb, sb, Vb, b0, b1, cb, target, near
                ):  # pragma: no cover - compiled
     """A certified lower bound (m) on the distance between convex shapes A and B (shapes as
     in :func:`convex_collide`): the largest min over A − B of x·u that GJK's directions u
     gave. GJK stops once it exceeds ``target`` + 1e-9 (returned), when a point of A − B lies
-    within ``target`` of the origin (the bound along that point's direction is taken too, so
-    a converged GJK returns about the distance) or when it makes no progress; ≤ ``target`` +
-    1e-9 whenever the shapes are not proved more than ``target`` apart (-inf: no direction
+    within ``near`` (m; ``target`` to decide, below 0 to converge) of the origin (the bound
+    along that point's direction is taken too: often well below the distance) or when it
+    makes no progress (a converged GJK returns about the distance); ≤ ``target`` + 1e-9
+    whenever the shapes are not proved more than ``target`` apart (-inf: no direction
     tried)."""
     W = np.empty((11, 3))  # rows: _S ... _E + 2
     idx = np.empty(4, dtype=np.int64)
@@ -271,7 +272,7 @@ def convex_gap(ka, Ra, pa, sa, Va, a0, a1, ca, kb, Rb, pb, sb, Vb, b0, b1, cb, t
         support_point(kb, Rb, pb, sb, Vb, b0, b1, W, 1.0, _XB)
         w0, w1, w2 = W[_XA, 0] - W[_XB, 0], W[_XA, 1] - W[_XB, 1], W[_XA, 2] - W[_XB, 2]
         sep = w0 * W[_U, 0] + w1 * W[_U, 1] + w2 * W[_U, 2]
-        if nv <= target:   # a point of A − B within target of the origin: no proof above it
+        if nv <= near:     # a point of A − B within near of the origin: no proof above it
             return max(best, sep)
         if sep > target + 1e-9:
             return sep

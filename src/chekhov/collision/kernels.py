@@ -326,11 +326,12 @@ def part_centre(hc, k, Rw, pw, out):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True, inline="always")
-def geometry_gap(geo, gj, Rc, pc, a, b, target, Rw, pw, cw):  # pragma: no cover - compiled
+def geometry_gap(geo, gj, Rc, pc, a, b, target, near, Rw, pw, cw
+                 ):  # pragma: no cover - compiled
     """A certified lower bound (m) on the distance between the geometries groups a and b
     cover (every pair of their parts whose bounding balls are nearer than the least gap so
-    far, :func:`gjk.convex_gap` towards ``target``), or -inf when either has none; joint
-    poses Rc, pc of the substep."""
+    far, :func:`gjk.convex_gap` towards ``target``, stopping at a point within ``near``), or
+    -inf when either has none; joint poses Rc, pc of the substep."""
     gk = geo.kind
     if gk[a] == NO_GEOMETRY or gk[b] == NO_GEOMETRY:
         return -np.inf
@@ -350,7 +351,7 @@ def geometry_gap(geo, gj, Rc, pc, a, b, target, Rw, pw, cw):  # pragma: no cover
                 continue   # the parts' balls are gap apart, and so are the parts
             gap = min(gap, convex_gap(gk[a], Rw[0], pw[0], geo.size[a], hv, vstart[i],
                                       vstart[i + 1], cw[0], gk[b], Rw[1], pw[1], geo.size[b],
-                                      hv, vstart[j], vstart[j + 1], cw[1], target))
+                                      hv, vstart[j], vstart[j + 1], cw[1], target, near))
             if gap <= 0.0:
                 return gap
     return gap
