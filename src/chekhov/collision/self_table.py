@@ -10,13 +10,13 @@ fast checker confirmed it on the covered geometry (GJK on the hulls) nearly ever
 the Panda's check time then. The
 pair's gap is a function of those joints alone, so it is tabulated once per robot over a grid
 of :data:`CELLS` cells a joint: each cell holds a certified lower bound on the distance
-between the two geometries for every configuration in it — the GJK bound (``gjk.convex_gap``,
-converged: stopped at the first point of A − B near the origin, as a confirmation stops, it
-was 2-6 cm below the distance on most of the Panda's near cells) at the cell's centre less
-the most the geometries can move relative to each other within the cell (each joint's half
-width times a bound on the distance of the moved group's points from its axis:
-``Groups.lever`` plus the group's radius) — floored to :data:`QUANTUM_M`. A pair
-whose cell bound exceeds its confirmation margin (``GroupGeometry.pad``, read at run time, so
+between the two geometries for every configuration in it — the GJK bound (``gjk.convex_gap``;
+where the bound at the first point of A − B near the origin proves nothing, converged: that
+first bound was 2-6 cm below the distance on most of the Panda's near cells) at the cell's
+centre less the most the geometries can move relative to each other within the cell (each
+joint's half width times a bound on the distance of the moved group's points from its axis:
+``Groups.lever`` plus the group's radius) — floored to :data:`QUANTUM_M`. A pair whose
+cell bound exceeds its confirmation margin (``GroupGeometry.pad``, read at run time, so
 a world with larger margins stays sound) is free with one lookup; otherwise it is checked as
 before. Units: rad, m.
 """
@@ -148,8 +148,8 @@ def build_self_tables(chain: KinematicChain, lower: Array, upper: Array, groups:
 @njit(cache=True, nogil=True)
 def _fill(q_ref, joint, lo, inv_w, arms, ab, chain, gj, geometry,
           gap):  # pragma: no cover - compiled
-    """Each table's cells: the converged GJK bound at the centre less the cell's motion
-    bound."""
+    """Each table's cells: the GJK bound at the centre (converged where the first one
+    proves nothing) less the cell's motion bound."""
     K = q_ref.shape[0]
     Rb, pb = np.empty((K, 3, 3)), np.empty((K, 3))
     Rw, pw, cw = np.empty((2, 3, 3)), np.empty((2, 3)), np.empty((2, 3))
@@ -166,8 +166,11 @@ def _fill(q_ref, joint, lo, inv_w, arms, ab, chain, gj, geometry,
                 if j1 >= 0:
                     q[j1] = lo[t, 1] + (y + 0.5) / inv_w[t, 1]
                 chain_fk(q, chain, Rb, pb)
-                d = geometry_gap(geometry, gj, Rb, pb, ab[t, 0], ab[t, 1], REACH_M + bound,
-                                 -1.0, Rw, pw, cw)     # converged, not the first near point
+                cap = REACH_M + bound
+                d = geometry_gap(geometry, gj, Rb, pb, ab[t, 0], ab[t, 1], cap, cap, Rw, pw, cw)
+                if d < bound + QUANTUM_M:   # the first near point's bound: converge
+                    d = geometry_gap(geometry, gj, Rb, pb, ab[t, 0], ab[t, 1], cap, -1.0, Rw,
+                                     pw, cw)
                 v = np.floor((d - bound) / QUANTUM_M)
                 gap[t, x, y] = np.uint8(min(max(v, 0.0), 255.0))
         q[:] = q_ref
