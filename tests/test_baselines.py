@@ -99,6 +99,40 @@ def test_ompl_simplify_keeps_its_time_budget(world, case, monkeypatch):
             assert 0 < budget <= simplify_time_s and at_least_once is False
 
 
+def test_ompl_simplified_path_in_collision_gives_way_to_the_path_as_it_came(world, case,
+                                                                             monkeypatch):
+    """A simplified path that fails the certification (its motions are checked every 0.02
+    rad, the certification's substeps are finer, and smoothing hugs obstacles: once in
+    panda_cage RRTConnect + simplify answered ``collision``) is not the answer: the path as
+    OMPL found it is, certified, and ``info["simplified_rejected"]`` says why. Here a
+    stand-in simplifier moves an interior state into collision."""
+    rng = np.random.default_rng(4)
+    Q = world.robot.sample_uniform(rng, 400)
+    q_bad = Q[~world.exact.valid(Q)][0]
+    raw = []
+
+    class Spoiler:
+        def __init__(self, si, goal):
+            pass
+
+        def simplify(self, path, budget, at_least_once=True):
+            raw.append(np.array([[path.getState(i)[j] for j in range(world.robot.dof)]
+                                 for i in range(path.getStateCount())]))
+            path.interpolate(max(3, path.getStateCount()))
+            state = path.getState(1)
+            for j, v in enumerate(q_bad):
+                state[j] = float(v)
+
+    q_start, goal, T_goal = case
+    planner = OmplPlanner(world, "RRTConnect", simplify=True, seed=3)
+    monkeypatch.setattr(planner, "_og", SimpleNamespace(PathSimplifier=Spoiler,
+                                                        RRTConnect=planner._og.RRTConnect))
+    result = planner.plan(q_start, goal, 1.0)
+    _check_path(world, result, q_start, T_goal)
+    assert len(raw) == 1 and np.array_equal(result.path, raw[0])
+    assert result.info["simplified_rejected"].startswith("collision")
+
+
 # --- LazyPRM on a known graph ----------------------------------------------------------
 #
 #        3 (1, 1)

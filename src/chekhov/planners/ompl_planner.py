@@ -22,7 +22,10 @@ How each is configured (the same for all four, apart from the objective):
   motion check) for at most ``simplify_time_s``, timed separately, and only while the time
   limit allows: it checks its budget between steps, so it is given ``simplify_time_s`` or
   the time left, less :data:`SIMPLIFY_STEP_S`, and is not started when that is not positive
-  (the path as it comes).
+  (the path as it comes). The simplified path is certified here; when it fails (its motions
+  are checked every ``resolution`` rad, the certification's 100 substeps a segment are finer,
+  and smoothing hugs the obstacles), the path as it came is the answer, and
+  ``info["simplified_rejected"]`` says why.
 
 ``time_limit_s`` bounds the whole ``plan`` call: IK first, then the planner gets the rest but
 a reserve (10% of it, at most 50 ms) for the certification of its path (RRT* and PRM* stop
@@ -47,6 +50,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from chekhov.collision.path_check import PathCertificate
 from chekhov.errors import ChekhovError
 from chekhov.planners.base import (
     CERTIFY_RESERVE,
@@ -55,6 +59,7 @@ from chekhov.planners.base import (
     search_deadline,
     solve_goal_ik,
 )
+from chekhov.planners.certify import check_path
 from chekhov.planners.query import PlanQuery
 from chekhov.planners.status import PlanStatus
 from chekhov.world import World
@@ -195,10 +200,11 @@ class OmplPlanner(PlannerBase):
         info: dict[str, object] = {"planner": self.kind}
         c0 = dict(self.counts)
 
-        def done(status: PlanStatus, path: Array | None = None) -> PlanResult:
+        def done(status: PlanStatus, path: Array | None = None,
+                 certificate: PathCertificate | None = None) -> PlanResult:
             info.update({k: self.counts[k] - c0[k] for k in self.counts})
             return PlanResult(path is not None, path, status, time.perf_counter() - t0,
-                              timing, info=info)
+                              timing, info=info, certificate=certificate)
 
         goals = solve_goal_ik(self.world, query, self.n_ik, timing, info)
         if goals is None:
@@ -237,12 +243,27 @@ class OmplPlanner(PlannerBase):
             return done(PlanStatus.TIMEOUT)
         path = pdef.getSolutionPath()
         info["raw_waypoints"] = int(path.getStateCount())
-        if self.simplify:
-            t = time.perf_counter()
-            simplifier = self._og.PathSimplifier(self.si, gs)
-            budget = min(self.simplify_time_s,
-                         query.remaining() * (1 - CERTIFY_RESERVE)) - SIMPLIFY_STEP_S
-            if budget > 0:   # OMPL's "at least once" would run a whole pass past the budget
-                simplifier.simplify(path, budget, False)
+        if not self.simplify:
+            return done(PlanStatus.SOLVED, self._path_array(path))
+        return done(PlanStatus.SOLVED, *self._simplified(path, gs, query, timing, info))
+
+    def _simplified(self, path: Any, goal: Any, query: PlanQuery, timing: dict[str, float],
+                    info: dict[str, object]) -> tuple[Array, PathCertificate | None]:
+        """The OMPL ``path`` simplified within its budget, with its certificate — or, when
+        the simplified path fails the certification, the path as it came (module
+        docstring)."""
+        raw = self._path_array(path)
+        t = time.perf_counter()
+        budget = min(self.simplify_time_s,
+                     query.remaining() * (1 - CERTIFY_RESERVE)) - SIMPLIFY_STEP_S
+        if budget <= 0:      # OMPL's "at least once" would run a whole pass past the budget
             timing["simplify"] = time.perf_counter() - t
-        return done(PlanStatus.SOLVED, self._path_array(path))
+            return raw, None
+        self._og.PathSimplifier(self.si, goal).simplify(path, budget, False)
+        simplified = self._path_array(path)
+        timing["simplify"] = time.perf_counter() - t
+        why, certificate = check_path(self.world, query, simplified)
+        if why is None:
+            return simplified, certificate
+        info["simplified_rejected"] = f"{why[0].value}: {why[1]}"
+        return raw, None
