@@ -131,6 +131,7 @@ def test_ompl_simplified_path_in_collision_gives_way_to_the_path_as_it_came(worl
     _check_path(world, result, q_start, T_goal)
     assert len(raw) == 1 and np.array_equal(result.path, raw[0])
     assert result.info["simplified_rejected"].startswith("collision")
+    assert result.timing_s["simplify_check"] > 0
 
 
 # --- LazyPRM on a known graph ----------------------------------------------------------

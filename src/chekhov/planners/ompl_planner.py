@@ -25,7 +25,7 @@ How each is configured (the same for all four, apart from the objective):
   (the path as it comes). The simplified path is certified here; when it fails (its motions
   are checked every ``resolution`` rad, the certification's 100 substeps a segment are finer,
   and smoothing hugs the obstacles), the path as it came is the answer, and
-  ``info["simplified_rejected"]`` says why.
+  ``info["simplified_rejected"]`` says why (that check's time: ``timing_s["simplify_check"]``).
 
 ``time_limit_s`` bounds the whole ``plan`` call: IK first, then the planner gets the rest but
 a reserve (10% of it, at most 50 ms) for the certification of its path (RRT* and PRM* stop
@@ -262,7 +262,9 @@ class OmplPlanner(PlannerBase):
         self._og.PathSimplifier(self.si, goal).simplify(path, budget, False)
         simplified = self._path_array(path)
         timing["simplify"] = time.perf_counter() - t
+        t = time.perf_counter()
         why, certificate = check_path(self.world, query, simplified)
+        timing["simplify_check"] = time.perf_counter() - t
         if why is None:
             return simplified, certificate
         info["simplified_rejected"] = f"{why[0].value}: {why[1]}"
