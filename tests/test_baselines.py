@@ -70,6 +70,12 @@ def test_ompl_simplify_and_errors(world, case):
     assert not bad.success and bad.status == "no_ik" and bad.path is None
 
 
+def _simplify_with(planner, simplifier, monkeypatch):
+    """``planner`` (RRTConnect) with ``simplifier`` in place of OMPL's PathSimplifier."""
+    monkeypatch.setattr(planner, "_og", SimpleNamespace(PathSimplifier=simplifier,
+                                                        RRTConnect=planner._og.RRTConnect))
+
+
 def test_ompl_simplify_keeps_its_time_budget(world, case, monkeypatch):
     """OMPL's simplifier checks its budget only between its steps, and asked for at least one
     whole pass (its default) it went through all of one whatever the budget: under a 5 ms
@@ -89,8 +95,7 @@ def test_ompl_simplify_keeps_its_time_budget(world, case, monkeypatch):
     for simplify_time_s, runs in ((1e-6, 0), (1.0, 1)):
         planner = OmplPlanner(world, "RRTConnect", simplify=True,
                               simplify_time_s=simplify_time_s, seed=3)
-        stand_in = SimpleNamespace(PathSimplifier=Recorder, RRTConnect=planner._og.RRTConnect)
-        monkeypatch.setattr(planner, "_og", stand_in)
+        _simplify_with(planner, Recorder, monkeypatch)
         calls.clear()
         result = planner.plan(q_start, goal, 1.0)
         _check_path(world, result, q_start, T_goal)
@@ -125,8 +130,7 @@ def test_ompl_simplified_path_in_collision_gives_way_to_the_path_as_it_came(worl
 
     q_start, goal, T_goal = case
     planner = OmplPlanner(world, "RRTConnect", simplify=True, seed=3)
-    monkeypatch.setattr(planner, "_og", SimpleNamespace(PathSimplifier=Spoiler,
-                                                        RRTConnect=planner._og.RRTConnect))
+    _simplify_with(planner, Spoiler, monkeypatch)
     result = planner.plan(q_start, goal, 1.0)
     _check_path(world, result, q_start, T_goal)
     assert len(raw) == 1 and np.array_equal(result.path, raw[0])

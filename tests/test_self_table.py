@@ -14,6 +14,7 @@ from chekhov import Robot, World
 from chekhov.collision.codes import BOX, HULL
 from chekhov.collision.self_table import QUANTUM_M, no_tables, table_gap
 from chekhov.collision.validity import valid_batch
+from chekhov.robot.chain_kinematics import chain_fk
 from chekhov.scene.io import scene_from_dict
 
 FINGERS = {"panda_finger_joint1": 0.04, "panda_finger_joint2": 0.04}
@@ -123,7 +124,7 @@ def test_table_proves_apart_what_is_apart_by_more_than_a_cell(panda_world):
     st, geo = p.self_tables, p.geometry
     robot = world.robot
     chain_R, chain_p = np.empty((robot.dof, 3, 3)), np.empty((robot.dof, 3))
-    from chekhov.robot.chain_kinematics import chain_fk
+    shapes = {int(g): _covered_shapes(p, g) for i in idx for g in p.groups.self_pairs[i]}
     rng = np.random.default_rng(8)
     near = 0
     for q in robot.sample_uniform(rng, 150):
@@ -136,7 +137,7 @@ def test_table_proves_apart_what_is_apart_by_more_than_a_cell(panda_world):
                 poses.append(coal.Transform3s(chain_R[j] @ geo.R[g],
                                               chain_R[j] @ geo.p[g] + chain_p[j]))
             d = min(_coal_distance(sa, poses[0], sb, poses[1])
-                    for sa in _covered_shapes(p, a) for sb in _covered_shapes(p, b))
+                    for sa in shapes[int(a)] for sb in shapes[int(b)])
             g = table_gap(q, i, st.pair, st.joint, st.lo, st.inv_w, st.gap)
             assert g <= max(d, 0.0) + 1e-6, (q, i, g, d)
             if 0.024 + QUANTUM_M < d < 0.2:
