@@ -331,6 +331,41 @@ def test_dynamic_obstacle_on_the_shortest_path_reroutes(world, roadmap, seeder):
     pytest.fail("no query found whose path a probe obstacle blocks")
 
 
+def test_a_first_answer_at_a_pregrasp_pose_needs_no_ik(world, roadmap, seeder, monkeypatch):
+    """Asked for one route to a pose its roadmap nodes meet, with the goal nodes first, the
+    seeder routes to a node without solving the IK, and the route is the one it gives when
+    the nodes alone fail and it takes the whole goal set (nodes first, then IK solutions)."""
+    ik_calls = []
+    configurations = seeder.goals.configurations
+    monkeypatch.setattr(seeder.goals, "configurations",
+                        lambda *a, **k: ik_calls.append(1) or configurations(*a, **k))
+    routes = seeder._routes
+
+    def nodes_alone_fail(ask, q_from, Q_goal):
+        if len(ik_calls) == 0:      # the call before any IK: the nodes alone
+            return ask.fail("no_path", reason="stand-in: the nodes alone failed")
+        return routes(ask, q_from, Q_goal)
+
+    pregrasp = roadmap.nodes_of_kind("pregrasp")
+    starts = _free_configurations(world, 6, 6)
+    same = 0
+    for k, n in enumerate(pregrasp[:6]):
+        goal = Goal.pose(world.robot.compute_ee_pose(roadmap.nodes[n]))
+        r = seeder.seeds(starts[k], goal, 1, goal_nodes_first=True)[0]
+        if not r.success:
+            continue
+        assert ik_calls == [] and r.timing_s["ik"] == 0.0
+        nodes = seeder.goal_nodes(goal)
+        assert any(np.array_equal(r.path[-1], roadmap.nodes[m]) for m in nodes)
+        monkeypatch.setattr(seeder, "_routes", nodes_alone_fail)
+        whole = seeder.seeds(starts[k], goal, 1, goal_nodes_first=True)[0]
+        monkeypatch.setattr(seeder, "_routes", routes)
+        assert len(ik_calls) == 1 and whole.success
+        same += np.array_equal(whole.path, r.path)
+        ik_calls.clear()
+    assert same >= 4
+
+
 def test_a_pregrasp_pose_goal_ends_at_its_roadmap_node(world, roadmap, seeder):
     """A pose goal some roadmap nodes meet (a pre-grasp node for its pre-grasp pose): its goal
     nodes are exactly the nodes within the IK's tolerances by pinocchio's FK of every node

@@ -7,6 +7,7 @@ import math
 import time
 from dataclasses import dataclass, field, replace
 from itertools import pairwise
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -179,56 +180,69 @@ class RoadmapSeeder:
         q_start = robot.check_configuration(q_start, "start configuration")
         self.validity.refresh()
         checks0 = dict(self.validity.checks)
-
-        def fail(status: str, **info: object) -> list[SeedResult]:
-            timing["total"] = time.perf_counter() - t0
-            return [SeedResult(False, status, None, np.empty(0, dtype=np.int64), None, timing,
-                               dict(info))]
-
+        ask = _Ask(q_start, goal, n_routes, deadline, shorter_than_rad, last_resorts, t0,
+                   timing, checks0)
         q_from, status, why = self._way_out(q_start, "start", deadline)
         if q_from is None:
-            return fail(status, reason=why)
+            return ask.fail(status, reason=why)
+        nodes = self.goal_nodes(goal, q_from) if goal_nodes_first and goal.is_pose else \
+            np.empty(0, dtype=np.int64)
+        if len(nodes) and n_routes == 1:
+            # the goal's roadmap nodes alone, by cheap connections, before any IK: a route
+            # found so is the one the whole goal set gives (its nodes come first), and a
+            # first answer at a pre-grasp pose needs no IK (0.3-0.5 ms of it)
+            found = self._routes(ask._replace(last_resorts=False), q_from,
+                                 self.roadmap.nodes[nodes])
+            if found[0].success or found[0].status == "timeout":
+                return found
         t = time.perf_counter()
-        Q_goal, status, why = self._goal_set(q_from, goal, n_routes, deadline,
+        Q_goal, status, why = self._goal_set(q_from, goal, n_routes, deadline, nodes,
                                              goal_nodes_first)
         timing["ik"] = time.perf_counter() - t
         if status:
-            return fail(status, reason=why)
-        if math.isfinite(shorter_than_rad):
-            Q_goal = Q_goal[np.linalg.norm(Q_goal - q_start, axis=1) < shorter_than_rad]
+            return ask.fail(status, reason=why)
+        return self._routes(ask, q_from, Q_goal)
+
+    def _routes(self, ask: _Ask, q_from: Array, Q_goal: Array) -> list[SeedResult]:
+        """:meth:`seeds`' routes from q_from (the start or its exit) to the goal
+        configurations Q_goal (n, K), in their order."""
+        timing, deadline, n_routes = ask.timing, ask.deadline, ask.n_routes
+        if math.isfinite(ask.shorter_than_rad):
+            Q_goal = Q_goal[np.linalg.norm(Q_goal - ask.q_start, axis=1) < ask.shorter_than_rad]
             if len(Q_goal) == 0:
-                return fail("no_path", pruned=True, reason=(
-                    f"no goal configuration is nearer the start than {shorter_than_rad:.3g} rad"))
+                return ask.fail("no_path", pruned=True, reason=(
+                    f"no goal configuration is nearer the start than "
+                    f"{ask.shorter_than_rad:.3g} rad"))
         t = time.perf_counter()
-        starts, goals = self._connect_ends(q_from, Q_goal, n_routes, deadline, last_resorts)
-        timing["connect"] = time.perf_counter() - t
+        starts, goals = self._connect_ends(q_from, Q_goal, n_routes, deadline,
+                                           ask.last_resorts)
+        timing["connect"] += time.perf_counter() - t
         if time.perf_counter() >= deadline:
-            return fail("timeout", reason="the time limit passed while connecting")
+            return ask.fail("timeout", reason="the time limit passed while connecting")
         if not starts or not goals:
-            return fail("no_connection", side="start" if not starts else "goal")
-        found = [_with_ends(r, q_start, goal.q) for r in
+            return ask.fail("no_connection", side="start" if not starts else "goal")
+        found = [_with_ends(r, ask.q_start, ask.goal.q) for r in
                  (self._route(q_from, Q_goal, starts, g, timing, deadline) for g in goals)
                  if r is not None]
-        timing["total"] = time.perf_counter() - t0
+        timing["total"] = time.perf_counter() - ask.t0
         if time.perf_counter() >= deadline:
-            return fail("timeout", reason="the time limit passed while routing")
+            return ask.fail("timeout", reason="the time limit passed while routing")
         if not found:
-            return fail("no_path", reason="dynamic obstacles cut every roadmap route tried")
-        checks = {k: self.validity.checks[k] - checks0[k] for k in checks0}
+            return ask.fail("no_path", reason="dynamic obstacles cut every roadmap route tried")
+        checks = {k: self.validity.checks[k] - ask.checks0[k] for k in ask.checks0}
         return [SeedResult(True, "solved", path, nodes, q_goal, timing,
                            {**info, "checks": checks}) for path, nodes, q_goal, info in found]
 
     def _goal_set(self, q_start: Array, goal: Goal, n_routes: int, deadline: float,
-                  nodes_first: bool = False) -> tuple[Array, str, str]:
+                  goal_nodes: IntArray, nodes_first: bool = False) -> tuple[Array, str, str]:
         """(goal configurations (n, K) nearest the start first — with ``nodes_first``, the
-        goal's roadmap nodes before the others, and none found from the start (``from_near``
-        of :meth:`goal_configurations`); a configuration goal's exit when the fast
-        checker rejects it (:meth:`_way_out`) —, failure status, reason)."""
+        goal's roadmap nodes (``goal_nodes``) before the others, and none found from the
+        start (``from_near`` of :meth:`goal_configurations`); a configuration goal's exit
+        when the fast checker rejects it (:meth:`_way_out`) —, failure status, reason)."""
         if goal.is_pose:
             assert goal.T_world_ee is not None
             n = max(self.config.n_goal_ik, n_routes)
-            nodes = self.roadmap.nodes[self.goal_nodes(goal, q_start) if nodes_first else
-                                       np.empty(0, dtype=np.int64)]
+            nodes = self.roadmap.nodes[goal_nodes]
             # a first answer to improve on (nodes_first) takes no IK near the start (+0.5-0.8
             # ms a query at the median); the improvements' routes, which shorten it, do. 40
             # random cases a scene, alternating: first answer median 1.7-1.9 -> 1.1-1.2 ms in
@@ -416,6 +430,27 @@ class RoadmapSeeder:
 
 
 _Route = tuple[Array, IntArray, Array, dict[str, object]]
+
+
+class _Ask(NamedTuple):
+    """One :meth:`RoadmapSeeder.seeds` query as its stages share it: its arguments, when it
+    began (perf_counter s), its timing by phase (s) and the validity checks made before."""
+
+    q_start: Array
+    goal: Goal
+    n_routes: int
+    deadline: float
+    shorter_than_rad: float
+    last_resorts: bool
+    t0: float
+    timing: dict[str, float]
+    checks0: dict[str, int]
+
+    def fail(self, status: str, **info: object) -> list[SeedResult]:
+        """The query's one unsuccessful result."""
+        self.timing["total"] = time.perf_counter() - self.t0
+        return [SeedResult(False, status, None, np.empty(0, dtype=np.int64), None,
+                           self.timing, dict(info))]
 
 
 def _with_ends(route: _Route, q_start: Array, q_goal: Array | None) -> _Route:
