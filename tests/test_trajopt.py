@@ -31,6 +31,7 @@ from chekhov.robot.goal import Goal
 from chekhov.robot.robot import Robot
 from chekhov.trajopt import _osqp
 from chekhov.trajopt import qp as trajopt_qp
+from chekhov.trajopt import solver as trajopt_solver
 from chekhov.trajopt.config import TrajOptConfig
 from chekhov.trajopt.problem import TrajOptError, build_trajopt, straight_line_seed
 from chekhov.trajopt.qp import TrajOptQP
@@ -215,6 +216,30 @@ def test_the_direct_osqp_solver_gives_the_public_wrappers_answers(pole, monkeypa
     for a, b in zip(x_direct, x_public, strict=True):
         np.testing.assert_array_equal(a, b)
     assert not np.array_equal(x_direct[0], prob.seed.ravel())     # the steps moved
+
+
+def test_a_runs_admm_iterations_count_every_qp_rebuilt_ones_too(pole, monkeypatch):
+    """``info["admm_iterations"]`` is the sum of the iterations OSQP reported over the whole
+    run, counted here at the solver itself: runs through the pole that outgrow their QP
+    (``qp_rebuilds`` > 0, no room left for new terms) included."""
+    solved: list[int] = []
+    solve = _osqp.QPSolver.solve
+
+    def counted(self, time_limit_s):
+        x, iterations, status = solve(self, time_limit_s)
+        solved.append(iterations)
+        return x, iterations, status
+
+    monkeypatch.setattr(_osqp.QPSolver, "solve", counted)
+    monkeypatch.setattr(trajopt_solver, "_HEADROOM", 0)    # any new term: a larger QP
+    rebuilt = 0
+    for q0, q1, seed in _pole_crossing_lines(pole, 6):
+        solved.clear()
+        r = solve_trajopt(build_trajopt(pole, q0, Goal.configuration(q1), seed,
+                                        TrajOptConfig()))
+        assert r.info["admm_iterations"] == sum(solved) > 0
+        rebuilt += r.info["qp_rebuilds"] > 0
+    assert rebuilt >= 1
 
 
 def _pole_crossing_lines(pole, n):

@@ -40,7 +40,8 @@ class TrajOptResult:
         seed: the seed trajectory (T, K).
         info: "cpu_s" (process CPU seconds of the optimisation, without the validation: the
             one-core cost, robust to other load on the machine), "penalty", "trust_rad",
-            "qp_rebuilds", "admm_iterations".
+            "qp_rebuilds", "admm_iterations" (OSQP's, over every QP of the run, rebuilt
+            ones included).
     """
 
     trajectory: Array

@@ -354,7 +354,10 @@ def _sized_qp(problem: TrajOptProblem, ev: Evaluation, old: TrajOptQP | None) ->
     if old is not None:
         w = np.maximum(w, old.waypoint_capacity)
         s = np.maximum(s, old.segment_capacity)
-    return TrajOptQP(problem, w, s)
+    qp = TrajOptQP(problem, w, s)
+    if old is not None:    # info["admm_iterations"] counts the whole run's
+        qp.admm_iterations = old.admm_iterations
+    return qp
 
 
 _HEADROOM = 1
