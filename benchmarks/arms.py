@@ -1,17 +1,17 @@
 """Arms nobody here developed on: one JSON object per arm and scene.
 
-    python benchmarks/arms.py [--json] [--arms ur5 xarm7 z1 so100 ur10 jaco]
+    python benchmarks/arms.py [--json] [--arms ur5 xarm7 z1 so100 ur10 jaco tiago]
                               [--scenes tabletop_pole] [--queries 30] [--pose-queries 20]
                               [--time-limit 2]
 
 Each arm comes from the ``example-robot-data`` package (its URDF, and its SRDF where the package
 has one), mounted at :data:`BASE_XYZ` (on the pole's table, where Baxter's scenes have room for
-it) in the built-in scene, with the default roadmap (built, or loaded from the cache). Queries
-join exactly free random configurations (seeded): ``--queries`` to a configuration goal and
-``--pose-queries`` to its end-effector pose. Roadmap + TrajOpt and RRTConnect + simplify (OMPL,
-the fast checker as its validity test) plan each after a warm-up, and every answer is checked
-again by the exact checker at 100 substeps (an answer that fails counts as ``exact_failures``:
-must be 0).
+it; TIAGo on the floor beside the table) in the built-in scene, with the default roadmap
+(built, or loaded from the cache). Queries join exactly free random configurations (seeded):
+``--queries`` to a configuration goal and ``--pose-queries`` to its end-effector pose.
+Roadmap + TrajOpt and RRTConnect + simplify (OMPL, the fast checker as its validity test) plan
+each after a warm-up, and every answer is checked again by the exact checker at 100 substeps
+(an answer that fails counts as ``exact_failures``: must be 0).
 
 Keys: arm, scene, dof, roadmap_s (build or load), nodes, exact_free (share of random
 configurations the exact checker finds free), fast_false_alarm (share of those the fast checker
@@ -46,12 +46,13 @@ BASE_XYZ = (0.35, 0.25, 0.76)
 
 class Arm(NamedTuple):
     """An arm of example-robot-data: URDF and SRDF (paths under ``robots/``), planned joints,
-    end-effector frame."""
+    end-effector frame, and where its base goes (m, world; facing +x)."""
 
     urdf: str
     srdf: str | None
     joints: tuple[str, ...]
     ee_frame: str
+    xyz: tuple[float, float, float] = BASE_XYZ
 
 
 _UR = ("shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint",
@@ -70,14 +71,20 @@ ARMS = {
     "so100": Arm("so_arm_description/urdf/so100.urdf", None,
                  ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll"),
                  "gripper"),
+    # PAL TIAGo: a mobile manipulator's 7-joint arm, its base, torso (lift at 0) and head fixed
+    # parts; no SRDF, and two pairs of its meshes overlap by design (robot.self_pairs). On
+    # the floor beside the table, not on it
+    "tiago": Arm("tiago_description/robots/tiago.urdf", None,
+                 tuple(f"arm_{i}_joint" for i in range(1, 8)), "arm_tool_link",
+                 (0.1, 0.25, 0.0)),
 }
 
 
 def make_world(arm: str, scene: str) -> World:
-    """The arm at :data:`BASE_XYZ` in the built-in scene."""
+    """The arm at its ``Arm.xyz`` (default :data:`BASE_XYZ`) in the built-in scene."""
     a, share = ARMS[arm], example_robot_data_dir()
     T = np.eye(4)
-    T[:3, 3] = BASE_XYZ
+    T[:3, 3] = a.xyz
     robot = Robot.from_urdf(share / "robots" / a.urdf, joints=list(a.joints),
                             ee_frame=a.ee_frame,
                             srdf=None if a.srdf is None else share / "robots" / a.srdf,

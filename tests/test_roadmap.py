@@ -616,3 +616,15 @@ def test_goal_last_resorts_wait_for_every_goals_cheap_connection(world, seeder, 
                                              last_resorts=False)
         assert calls[1:] == [(0, False), (1, False), (2, False)]
         assert [g[0][0] for g in goals] == ([] if fails else [1, 2])
+
+
+def test_a_robot_with_no_free_configuration_is_told_what_collides():
+    """A Panda whose base is inside the table: no roadmap, and the error names the geometries
+    the exact checker finds in collision (here the table and the first link), not a guess."""
+    from chekhov import Robot, World, load_scene
+
+    T = np.eye(4)
+    T[:3, 3] = (0.85, 0.25, 0.60)
+    world = World(load_scene("tabletop_pole"), Robot.load("panda", T))
+    with pytest.raises(RoadmapError, match=r"obstacle:tabletop / panda_link1_0 \(50 of 50\)"):
+        build_roadmap(world, RoadmapConfig(n_nodes=100))

@@ -13,6 +13,7 @@ import sys
 import time
 from pathlib import Path
 
+import coal
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -183,6 +184,49 @@ def test_adjacent_links_are_not_checked_for_self_collision():
     world = World(load_scene("tabletop_pole"), robot)
     free = [world.exact.is_valid(q) for q in robot.sample_uniform(np.random.default_rng(2), 100)]
     assert sum(free) >= 50
+
+
+def test_links_whose_meshes_always_overlap_are_not_checked_and_the_rest_are(caplog):
+    """TIAGo (no SRDF): its first arm link lies inside the torso column's mesh, and its wrist
+    sensor inside the sixth arm link's, in every configuration, so every configuration
+    collided and no roadmap could be built. Those two pairs are left out (MoveIt's
+    "Always"), with a warning naming them; a pair that collides only sometimes (the forearm
+    against the base) stays checked, and about half of the random configurations beside the
+    table are free by coal."""
+    T = np.eye(4)
+    T[:3, 3] = (0.1, 0.25, 0.0)
+    with caplog.at_level("WARNING", logger="chekhov.robot.robot"):
+        robot = Robot.from_urdf(SHARE / "robots/tiago_description/robots/tiago.urdf",
+                                joints=[f"arm_{i}_joint" for i in range(1, 8)],
+                                ee_frame="arm_tool_link", package_dirs=[SHARE.parent],
+                                T_world_base=T)
+        always = {frozenset((robot.geometry_link(i), robot.geometry_link(j)))
+                  for i, j in robot.always_colliding_pairs}
+    assert always == {frozenset(("arm_1_link", "torso_fixed_column_link")),
+                      frozenset(("arm_6_link", "wrist_ft_link"))}
+    assert "arm_6_link" in caplog.text and "wrist_ft_link" in caplog.text
+    checked = {frozenset((robot.geometry_link(i), robot.geometry_link(j)))
+               for i, j in robot.self_collision_pairs}
+    assert not always & checked
+    assert frozenset(("arm_4_link", "base_link")) in checked
+    # they still overlap at other configurations (coal on the two shapes, another seed):
+    # only the checks leave them out
+    model, geoms = robot.model, robot.collision_model
+    data, gdata = model.createData(), pin.GeometryData(geoms)
+    Q = robot.sample_uniform(np.random.default_rng(11), 200)
+    for q in Q[:20]:
+        pin.updateGeometryPlacements(model, data, geoms, gdata, q)
+        for i, j in robot.always_colliding_pairs:
+            out = coal.CollisionResult()
+            coal.collide(geoms.geometryObjects[i].geometry, gdata.oMg[i],
+                         geoms.geometryObjects[j].geometry, gdata.oMg[j],
+                         coal.CollisionRequest(), out)
+            assert out.isCollision()
+    exact = World(load_scene("tabletop_pole"), robot).exact
+    free = exact.valid(Q)
+    assert 60 <= free.sum() <= 160
+    assert any(frozenset(("arm_4_link_0", "base_link_0")) in n
+               for n in (set(map(frozenset, exact.colliding_pairs(q))) for q in Q[~free]))
 
 
 def test_a_scene_file_names_a_robot_file(tmp_path):

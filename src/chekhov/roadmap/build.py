@@ -4,6 +4,7 @@ plus semantic and wrist node families, see :class:`RoadmapConfig`)."""
 from __future__ import annotations
 
 import time
+from collections import Counter
 from collections.abc import Callable
 from datetime import UTC, datetime
 from typing import NamedTuple
@@ -85,10 +86,26 @@ class _Builder:
             have += len(Q)
             if drawn > 200 * n:
                 raise RoadmapError(f"roadmap: only {have} of {n} collision-free samples in "
-                                   f"{drawn} draws; is the robot stuck in an obstacle?")
+                                   f"{drawn} draws; {self._what_collides()}")
         Q = np.concatenate(out)[:n]
         self.notes["uniform_free_fraction"] = round(have / drawn, 4)
         return Q
+
+    def _what_collides(self, n: int = 50) -> str:
+        """What the exact checker finds colliding most often at ``n`` random configurations
+        (sampled as the roadmap's uniform nodes are): the reason it finds no free samples."""
+        P, distal = distal_values(self.world, self.config)
+        Q = self.robot.sample_uniform(np.random.default_rng(0), n)
+        Q[:, P:] = distal
+        seen: Counter[tuple[str, ...]] = Counter()
+        for q in Q:
+            seen.update({tuple(sorted(p)) for p in self.exact.colliding_pairs(q)})
+        top = ", ".join(f"{' / '.join(p)} ({k} of {n})" for p, k in seen.most_common(3))
+        if not top:
+            return "is the robot stuck in an obstacle?"
+        return (f"the geometries most often in collision: {top} (an obstacle where the robot "
+                f"stands, or two links whose meshes overlap: an SRDF's disable_collisions "
+                f"leaves a pair out)")
 
     def _ik_nodes(self, T_world_ee: Array, seeds: Array, n_max: int, existing: list[Array]
                   ) -> list[Array]:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import logging
 import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from functools import cached_property
@@ -20,9 +21,11 @@ from chekhov.robot._urdf import (
     rename_shadowing_joints,
 )
 from chekhov.robot.description import RobotDescription, SphereSettings, example_robot_data_dir
+from chekhov.robot.self_pairs import ALWAYS_SAMPLES, always_colliding
 from chekhov.transforms import make_transform, rpy_to_matrix
 
 Array = NDArray[np.float64]
+_log = logging.getLogger(__name__)
 _AXES = {"RX": (1.0, 0.0, 0.0), "RY": (0.0, 1.0, 0.0), "RZ": (0.0, 0.0, 1.0)}
 
 
@@ -134,6 +137,8 @@ class Robot:
             h.update(d.resolve(d.srdf).read_bytes())
         h.update(repr((d.group_joints, d.ee_frame, d.fixed_joints, d.spheres,
                        np.round(self.T_world_base, 12).tolist())).encode())
+        if self.always_colliding_pairs:   # (no change for the robots that have none)
+            h.update(repr(("always", self.always_colliding_pairs)).encode())
         return h.hexdigest()
 
     # --- construction -------------------------------------------------------------------
@@ -311,9 +316,33 @@ class Robot:
 
         A pair is checked when at least one geometry moves, the two are on different joints,
         their links are not adjacent (:func:`~chekhov.robot._urdf.adjacent_links`: joined by
-        a joint, or through links without collision geometry — MoveIt's "Adjacent"), and the
-        SRDF does not disable them (never in collision).
+        a joint, or through links without collision geometry — MoveIt's "Adjacent"), the
+        SRDF does not disable them (never in collision), and they do not collide in every
+        configuration (:attr:`always_colliding_pairs`, MoveIt's "Always").
         """
+        always = set(self.always_colliding_pairs)
+        return tuple(p for p in self._candidate_self_pairs if p not in always)
+
+    @cached_property
+    def always_colliding_pairs(self) -> tuple[tuple[int, int], ...]:
+        """Geometry pairs left out of :attr:`self_collision_pairs` because they collide in
+        every one of 1000 random configurations (:mod:`chekhov.robot.self_pairs`): meshes that
+        overlap by design, which no SRDF entry disables. Logged as a warning when found."""
+        found = always_colliding(self.model, self.collision_model, self._candidate_self_pairs,
+                                 self.lower, self.upper)
+        if found:
+            names = sorted({tuple(sorted((self.geometry_link(i), self.geometry_link(j))))
+                            for i, j in found})
+            _log.warning("robot '%s': %d self-collision pair(s) collide in every one of %d "
+                         "random configurations and are not checked (MoveIt's \"Always\"; "
+                         "an SRDF's disable_collisions says so explicitly): %s", self.name,
+                         len(found), ALWAYS_SAMPLES, names)
+        return found
+
+    @cached_property
+    def _candidate_self_pairs(self) -> tuple[tuple[int, int], ...]:
+        """The pairs the URDF's adjacency and the SRDF leave (:attr:`self_collision_pairs`
+        before the "Always" rule)."""
         geoms = self.collision_model.geometryObjects
         moving = set(self.moving_geometries)
         disabled = self._srdf_disabled | self._adjacent
