@@ -11,7 +11,8 @@ sphere is not clear tries its own spheres: each sphere's centre lies within r_g 
 moves by at most S_g = Σ_i |δq_i| (L_gi + r_g) per substep, and when every sphere s is clear by
 d_s > 0 the group stays clear for floor(min_s d_s / S_g) substeps. A group whose spheres
 touch something gets the gap GJK certifies between its covered geometry and each obstacle or
-fixed part within reach (beyond its confirmation margin): the covered geometry lies in the
+fixed part within reach (beyond its confirmation margin; for the fixed parts, the group's
+gap table when one or two joints move it, ``self_table.py``): the covered geometry lies in the
 bounding sphere, so it too moves by at most S_g per substep. Near contact, where every
 substep used to need the full check, one GJK now covers several substeps: the first answer
 on the Panda's task cases went from a median of 7 ms to 4.4-5 ms (A/B, panda_cage and
@@ -59,11 +60,10 @@ from numba import njit
 
 from chekhov.collision import packed
 from chekhov.collision.codes import NO_GEOMETRY, NONE
-from chekhov.collision.gjk import convex_gap
 from chekhov.collision.kernels import (
     geometry_gap,
     grid_cell,
-    part_centre,
+    obstacle_gap,
     place_geometry,
     signed_distance,
 )
@@ -206,35 +206,6 @@ GAP_LOOK = 8
 confirmation margins) when GJK measures it: a farther target costs more GJK iterations."""
 
 
-@njit(cache=True, nogil=True, inline="always")
-def _obstacle_gap(g, c, r, target, kind, R, p, size, ck, V, vs, cen, allow, gk, gsize,
-                  pstart, vstart, hv, hcen, hrad, Rg, pg, cw):  # pragma: no cover - compiled
-    """A certified lower bound (m, at most ``target``) on the distance from group g's
-    covered geometry (world pose Rg, pg; inside the ball of radius r about c) to the
-    primitives (kind, R, p, size) whose confirmation shapes are (ck, V[vs[o]:vs[o+1]],
-    cen[o]: see ``gjk.convex_collide``; vs empty: the primitives themselves, about p),
-    ``allow[o]`` those to count: GJK for each one nearer than r + target to c, the others
-    being at least target away, and for each part whose ball (radius hrad[k]) is nearer than
-    that. The geometry: gk, gsize, pstart, vstart, hv, hcen, hrad as in ``GroupGeometry``; cw
-    (3,): work space."""
-    gap = target
-    for o in range(kind.shape[0]):
-        if not allow[o] or signed_distance(kind[o], R[o], p[o], size[o], c) >= r + gap:
-            continue
-        v0 = vs[o] if vs.shape[0] > 0 else 0
-        v1 = vs[o + 1] if vs.shape[0] > 0 else 0
-        cb = cen[o] if vs.shape[0] > 0 else p[o]
-        for k in range(pstart[g], pstart[g + 1]):
-            part_centre(hcen, k, Rg, pg, cw)
-            if signed_distance(kind[o], R[o], p[o], size[o], cw) >= hrad[k] + gap:
-                continue   # the primitive holds the confirmation shape: that far from it too
-            gap = min(gap, convex_gap(gk[g], Rg, pg, gsize[g], hv, vstart[k], vstart[k + 1], cw,
-                                      ck[o], R[o], p[o], size[o], V, v0, v1, cb, gap, gap))
-            if gap <= 0.0:
-                return gap
-    return gap
-
-
 @njit(cache=True, nogil=True)
 def _walk(P, t0, t1, n, m_first, m_last, check_ends, world, work, ww
           ):  # pragma: no cover - compiled
@@ -264,7 +235,7 @@ def _walk(P, t0, t1, n, m_first, m_last, check_ends, world, work, ww
     (until, puntil, step_len, sphere_step, pair_step, pair_sphere_step, q, Rc, pc, gwc, swc,
      swc_at, mark, Rw, pw, cw, budget, dq, curve) = ww
     geo = world.geometry
-    tpair, tjoint, tlo, tinv, tgap = world.self_tables
+    tpair, tjoint, tlo, tinv, tgap, tgroup = world.self_tables
     st, fixed = world.static, world.fixed
     sk, sR, sp, ss = st.kind, st.R, st.p, st.size
     fk, fR, fp, fs = fixed.prims.kind, fixed.prims.R, fixed.prims.p, fixed.prims.size
@@ -337,17 +308,22 @@ def _walk(P, t0, t1, n, m_first, m_last, check_ends, world, work, ww
                 # spheres touching: the covered geometry's gap to what is near, past its pad
                 place_geometry(Rc, pc, gj, gR, gp, g, Rw[0], pw[0])
                 # static obstacles, then dynamic ones, then fixed parts, while none is near
-                d = _obstacle_gap(g, gwc[g], gr[g], gpad[g] + GAP_LOOK * sphere_step[g], sk,
-                                  sR, sp, ss, sk, no_v, no_vs, sp, all_static, gk, gsize,
-                                  pstart, vstart, hv, hcen, hrad, Rw[0], pw[0], cw[0])
+                d = obstacle_gap(g, gwc[g], gr[g], gpad[g] + GAP_LOOK * sphere_step[g], False,
+                                 sk, sR, sp, ss, sk, no_v, no_vs, sp, all_static, gk, gsize,
+                                 pstart, vstart, hv, hcen, hrad, Rw[0], pw[0], cw[0])
                 if d > gpad[g] and dk.shape[0] > 0:
-                    d = _obstacle_gap(g, gwc[g], gr[g], d, dk, dR, dp, ds, dk, no_v, no_vs,
-                                      dp, all_dynamic, gk, gsize, pstart, vstart, hv, hcen,
-                                      hrad, Rw[0], pw[0], cw[0])
+                    d = obstacle_gap(g, gwc[g], gr[g], d, False, dk, dR, dp, ds, dk, no_v,
+                                     no_vs, dp, all_dynamic, gk, gsize, pstart, vstart, hv,
+                                     hcen, hrad, Rw[0], pw[0], cw[0])
                 if d > gpad[g] and gfix[g] >= 0:
-                    d = _obstacle_gap(g, gwc[g], gr[g], d, fk, fR, fp, fs, fck, fV, fvs, fcen,
-                                      fallow[g], gk, gsize, pstart, vstart, hv, hcen, hrad,
-                                      Rw[0], pw[0], cw[0])
+                    # the fixed parts: the group's table (a bound at q), else GJK
+                    e = table_gap(q, g, tgroup, tjoint, tlo, tinv, tgap)
+                    if e > gpad[g] + GAP_LOOK * sphere_step[g]:
+                        d = min(d, e)
+                    else:
+                        d = obstacle_gap(g, gwc[g], gr[g], d, False, fk, fR, fp, fs, fck, fV,
+                                         fvs, fcen, fallow[g], gk, gsize, pstart, vstart, hv,
+                                         hcen, hrad, Rw[0], pw[0], cw[0])
                 d -= gpad[g]
             if d > 0.0:
                 until[g] = m + clear_for(d, g, gr[g], curve[g, 1], sphere_step[g], dq, parent,

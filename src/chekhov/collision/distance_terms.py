@@ -331,7 +331,7 @@ def _self_candidates(q, margin, clear, world, cw, gw, n, cand):  # pragma: no co
     geometries' own, certified) is at least ``clear`` m; returns the new count."""
     gstart, gr = world.groups.start, world.groups.radius
     self_pairs, sr = world.groups.self_pairs, world.spheres.radius
-    tpair, tjoint, tlo, tinv, tgap = world.self_tables
+    tpair, tjoint, tlo, tinv, tgap, tgroup = world.self_tables
     cd, cs, co, ck, ca, cn = cand
     for i in range(self_pairs.shape[0]):
         a, b = self_pairs[i, 0], self_pairs[i, 1]

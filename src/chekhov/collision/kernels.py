@@ -355,3 +355,34 @@ def geometry_gap(geo, gj, Rc, pc, a, b, target, near, Rw, pw, cw
             if gap <= 0.0:
                 return gap
     return gap
+
+
+@njit(cache=True, nogil=True, inline="always")
+def obstacle_gap(g, c, r, target, converge, kind, R, p, size, ck, V, vs, cen, allow, gk, gsize,
+                 pstart, vstart, hv, hcen, hrad, Rg, pg, cw):  # pragma: no cover - compiled
+    """A certified lower bound (m, at most ``target``) on the distance from group g's
+    covered geometry (world pose Rg, pg; inside the ball of radius r about c) to the
+    primitives (kind, R, p, size) whose confirmation shapes are (ck, V[vs[o]:vs[o+1]],
+    cen[o]: see ``gjk.convex_collide``; vs empty: the primitives themselves, about p),
+    ``allow[o]`` those to count: GJK for each one nearer than r + target to c, the others
+    being at least target away, and for each part whose ball (radius hrad[k]) is nearer than
+    that. GJK stops at the first point of A − B within the gap so far, unless ``converge``
+    (then it runs until it converges: a tighter bound, more iterations). The geometry: gk,
+    gsize, pstart, vstart, hv, hcen, hrad as in ``GroupGeometry``; cw (3,): work space."""
+    gap = target
+    for o in range(kind.shape[0]):
+        if not allow[o] or signed_distance(kind[o], R[o], p[o], size[o], c) >= r + gap:
+            continue
+        v0 = vs[o] if vs.shape[0] > 0 else 0
+        v1 = vs[o + 1] if vs.shape[0] > 0 else 0
+        cb = cen[o] if vs.shape[0] > 0 else p[o]
+        for k in range(pstart[g], pstart[g + 1]):
+            part_centre(hcen, k, Rg, pg, cw)
+            if signed_distance(kind[o], R[o], p[o], size[o], cw) >= hrad[k] + gap:
+                continue   # the primitive holds the confirmation shape: that far from it too
+            gap = min(gap, convex_gap(gk[g], Rg, pg, gsize[g], hv, vstart[k], vstart[k + 1], cw,
+                                      ck[o], R[o], p[o], size[o], V, v0, v1, cb, gap,
+                                      -1.0 if converge else gap))
+            if gap <= 0.0:
+                return gap
+    return gap

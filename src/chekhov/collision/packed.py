@@ -178,7 +178,8 @@ class PackedWorld(NamedTuple):
     (the geometry each group covers), fixed (fixed robot parts), grids: see their classes;
     static, dynamic: the scene's static and dynamic obstacles; obstacles: all of them, in the
     order of ``FastChecker.obstacle_names`` (contacts and distance terms index it);
-    self_tables: gap bounds of the self pairs one or two joints move (``self_table.py``)."""
+    self_tables: gap bounds of the self pairs one or two joints move, and of the groups one or
+    two joints move against the fixed parts (``self_table.py``)."""
 
     chain: KinematicChain
     spheres: Spheres
@@ -267,7 +268,7 @@ def pack_world(robot: Robot, scene: Scene | None = None, *, spheres: SphereModel
         chain=chain, spheres=sph, groups=groups, geometry=geometry, fixed=fixed, grids=grids,
         static=static, dynamic=pack_primitives(p for p, dyn in obstacles.values() if dyn),
         obstacles=pack_primitives(p for p, _ in obstacles.values()),
-        self_tables=robot_self_tables(robot, chain, groups, geometry,
+        self_tables=robot_self_tables(robot, chain, groups, geometry, fixed,
                                       sph.centre.tobytes() + sph.radius.tobytes()))
 
 

@@ -2,7 +2,9 @@
 
 Each group (the spheres covering one collision geometry) has a bounding sphere; static
 obstacles and fixed robot parts are first ruled out by their distance grids, group (on the
-coarse grids, which stay in cache) then sphere (on the fine ones).
+coarse grids, which stay in cache) then sphere (on the fine ones); a group that one or two
+joints move is ruled out of the fixed parts by its gap table when the grid cannot
+(``self_table.py``).
 A sphere that may touch a primitive is settled in three steps: its inner ball (a ball inside
 the covered geometry, radius ``inner``) touching the primitive is a certain collision;
 otherwise the covered geometry itself (``GroupGeometry``: a box, cylinder or sphere, or the
@@ -174,7 +176,7 @@ def collisions(Q, world, work, out, stop):  # pragma: no cover - compiled
     gk, eR, ep, es, pad = geo.kind, geo.R, geo.p, geo.size, geo.pad
     pstart, vstart, hv, hcen = geo.part_start, geo.vert_start, geo.verts, geo.part_centre
     hrad, fb = geo.part_radius, fprims.bound
-    tpair, tjoint, tlo, tinv, tgap = world.self_tables
+    tpair, tjoint, tlo, tinv, tgap, tgroup = world.self_tables
 
     # the confirmations' work space, allocated once for the batch (six small allocations
     # per configuration cost as much as the grid lookups of a free one)
@@ -206,6 +208,8 @@ def collisions(Q, world, work, out, stop):  # pragma: no cover - compiled
                 env = grid_classify(origin, ihc, hc, delta, Vc, 0, gw[g], gr[g])
                 fix = VALID if fg < 0 else grid_classify(origin, ihc, hc, delta, Vc, fg, gw[g],
                                                          gr[g])
+                if fix != VALID and table_gap(q, g, tgroup, tjoint, tlo, tinv, tgap) > pad[g]:
+                    fix = VALID   # proved apart over the cell of the joints that move it
                 if env == VALID and fix == VALID and nd == 0:
                     continue
             _centers(Rb, pb, sj, sc, gstart[g], gstart[g + 1], cw)
