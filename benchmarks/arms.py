@@ -1,12 +1,12 @@
 """Arms nobody here developed on: one JSON object per arm and scene.
 
-    python benchmarks/arms.py [--json] [--arms ur5 xarm7 z1 so100 ur10 jaco tiago]
+    python benchmarks/arms.py [--json] [--arms ur5 xarm7 z1 so100 ur10 jaco tiago pr2]
                               [--scenes tabletop_pole] [--queries 30] [--pose-queries 20]
                               [--time-limit 2]
 
 Each arm comes from the ``example-robot-data`` package (its URDF, and its SRDF where the package
 has one), mounted at :data:`BASE_XYZ` (on the pole's table, where Baxter's scenes have room for
-it; TIAGo on the floor beside the table) in the built-in scene, with the default roadmap
+it; TIAGo and the PR2 on the floor beside the table) in the built-in scene, with the default roadmap
 (built, or loaded from the cache). Queries join exactly free random configurations (seeded):
 ``--queries`` to a configuration goal and ``--pose-queries`` to its end-effector pose.
 Roadmap + TrajOpt and RRTConnect + simplify (OMPL, the fast checker as its validity test) plan
@@ -77,6 +77,13 @@ ARMS = {
     "tiago": Arm("tiago_description/robots/tiago.urdf", None,
                  tuple(f"arm_{i}_joint" for i in range(1, 8)), "arm_tool_link",
                  (0.1, 0.25, 0.0)),
+    # Willow Garage PR2: the left arm (two continuous joints), the base, torso (lift at 0),
+    # head and right arm fixed parts; its SRDF
+    "pr2": Arm("pr2_description/urdf/pr2.urdf", "pr2_description/srdf/pr2.srdf",
+               tuple(f"l_{j}_joint" for j in ("shoulder_pan", "shoulder_lift", "upper_arm_roll",
+                                             "elbow_flex", "forearm_roll", "wrist_flex",
+                                             "wrist_roll")), "l_gripper_tool_frame",
+               (-0.05, 0.1, 0.0)),
 }
 
 

@@ -1,11 +1,12 @@
 """Where Roadmap + TrajOpt's time goes, stage by stage: one JSON object per scene and family.
 
     python benchmarks/stages.py [--json] [--scenes ...] [--family tasks] [--cases 40]
-                                [--case-seed 3] [--time-limit 2]
+                                [--case-seed 3] [--time-limit 2] [--arm tiago]
 
 Each case of the scene's cached case set (``chekhov.cases.cached_cases``) is planned once
-(after three warm-up calls), and the ``StageReport`` times are summed per stage. Keys: scene,
-family, cases, ``mean_ms`` / ``median_ms`` (``result.time_s``), ``first_median_ms``
+(after three warm-up calls), and the ``StageReport`` times are summed per stage; ``--arm``
+puts an arm of ``benchmarks/arms.py`` in the scene in place of its robot. Keys: scene,
+family, arm, cases, ``mean_ms`` / ``median_ms`` (``result.time_s``), ``first_median_ms``
 (``result.first_solution_s``), ``stage_ms_per_case`` (stage → mean ms a case, over all cases,
 0 where a stage did not run), ``stage_runs`` (stage → how many cases ran it),
 ``certify_ms_per_case`` (the certification of offered paths, ``timing_s["offers"]`` and
@@ -36,8 +37,14 @@ from chekhov.planners.roadmap_trajopt import RoadmapTrajOpt
 from chekhov.planners.status import PlanStatus, Stage
 
 
-def bench_scene(scene: str, family: str, n: int, seed: int, limit_s: float) -> dict[str, Any]:
-    world = World.load(scene)
+def bench_scene(scene: str, family: str, n: int, seed: int, limit_s: float,
+                arm: str | None = None) -> dict[str, Any]:
+    if arm is None:
+        world = World.load(scene)
+    else:
+        from arms import make_world  # this folder: run as a script
+
+        world = make_world(arm, scene)
     planner = RoadmapTrajOpt(world, load_or_build_roadmap(world))
     cases = cached_cases(world, n, seed=seed, family=family)
     for i in range(min(3, len(cases))):   # load compiled kernels, fill caches
@@ -61,7 +68,7 @@ def bench_scene(scene: str, family: str, n: int, seed: int, limit_s: float) -> d
         certify.append(r.timing_s.get("offers", 0.0) + r.timing_s.get("certify", 0.0))
         route.append(r.timing_s.get("route_check", 0.0))
     k = len(cases)
-    return {"scene": scene, "family": family, "cases": k,
+    return {"scene": scene, "family": family, "arm": arm, "cases": k,
             "mean_ms": round(float(np.mean(total)) * 1e3, 2),
             "median_ms": round(float(np.median(total)) * 1e3, 2),
             "first_median_ms": round(float(np.median(first)) * 1e3, 2) if first else None,
@@ -80,10 +87,13 @@ def main() -> None:
     ap.add_argument("--cases", type=int, default=40)
     ap.add_argument("--case-seed", type=int, default=3)
     ap.add_argument("--time-limit", type=float, default=2.0, help="s per plan call")
+    ap.add_argument("--arm", default=None,
+                    help="an arm of benchmarks/arms.py in place of the scene's robot")
     ap.add_argument("--json", action="store_true", help="JSON lines only")
     args = ap.parse_args()
     for scene in args.scenes:
-        row = bench_scene(scene, args.family, args.cases, args.case_seed, args.time_limit)
+        row = bench_scene(scene, args.family, args.cases, args.case_seed, args.time_limit,
+                          args.arm)
         print(json.dumps(row) if args.json else
               "  ".join(f"{k}={v}" for k, v in row.items()), flush=True)
 
