@@ -373,6 +373,33 @@ def test_sphere_clearance_shortfall_is_accepted_only_when_the_exact_check_passes
     assert pole.exact.path_valid(r.trajectory, substeps=100)
 
 
+def test_each_level_validated_ends_a_run_short_of_the_sphere_clearance_only(pole, rng):
+    """The same unreachable clearance, four penalty levels allowed: without
+    ``validate_each_level`` the run raises the penalty at every level and is validated at the
+    end; with it, the first level's trajectory is validated, passes, and the run ends there,
+    "exact_clear", in fewer iterations — free by coal on every configuration at 100
+    substeps. A level whose trajectory fails the validation goes on (one validation lost)."""
+    for _ in range(50):
+        q0, q1 = _free(pole, rng, 2)
+        seed = straight_line_seed(q0, q1, 12)
+        if pole.exact.path_valid(seed, substeps=20):
+            break
+    else:
+        pytest.fail("no free straight line among 50 pairs of free configurations")
+    cfg = TrajOptConfig(safety_margin_m=0.35, check_distance_m=0.4, min_clearance_m=0.3,
+                        max_iterations=40, max_penalty_increases=3)
+    goal = Goal.configuration(q1)
+    late = solve_trajopt(build_trajopt(pole, q0, goal, seed, cfg))
+    early = solve_trajopt(build_trajopt(pole, q0, goal, seed,
+                                        replace(cfg, validate_each_level=True)))
+    assert late.status == early.status == "exact_clear"
+    assert late.penalty_increases == 3 and early.penalty_increases == 0
+    assert early.iterations < late.iterations
+    assert early.success and early.valid and early.certificate is not None
+    assert early.unmet() == {"collision_m"}
+    assert pole.exact.path_valid(early.trajectory, substeps=100)
+
+
 def test_within_cuts_the_time_limit_only_when_shorter():
     cfg = TrajOptConfig(time_limit_s=2.0)
     assert cfg.within(5.0) is cfg

@@ -64,6 +64,11 @@ class TrajOptConfig:
             passes. Measured on the kitchen's 500 cases: 35 of the 51 trajectories that
             Roadmap + TrajOpt used to replace by its seed. Needs a ``validate`` other than
             "none".
+        validate_each_level: with ``accept_exact_clear``, validate the trajectory at the
+            end of every penalty level where the sphere model's clearance is the only unmet
+            constraint, and end the run there ("exact_clear") when it passes, instead of
+            raising the penalty, which only pushes the path off obstacles its links do not
+            touch (a failed try costs one validation).
         refine_rounds: when the validation finds a collision (status "collision"), the
             segments whose own exact decision fails are split at their midpoints and the
             optimisation goes on from that trajectory, at most this many times while time is
@@ -122,6 +127,7 @@ class TrajOptConfig:
     substeps: int = 100
     validate_max_segment_rad: float = CERTIFY_MAX_SEGMENT_RAD
     accept_exact_clear: bool = True
+    validate_each_level: bool = False
     refine_rounds: int = 2
     stall_levels: int = 0
     time_limit_s: float = 10.0

@@ -61,7 +61,9 @@ class _SQPState:
         deadline: ``time.perf_counter()`` value, s. step_s: s, expected cost of the next step.
         timing: s per phase (collision, linearise, qp, validate, …).
         converged / out_of_budget / abandoned: why the current penalty's loop ended;
-        stalled: the penalty loop ended on ``stall_levels``.
+        stalled: the penalty loop ended on ``stall_levels``; cleared: the exact validation
+        that ended it at a level short of the sphere model's clearance only
+        (``validate_each_level``).
         accepted: steps accepted. abandon_above: rad, the length that abandons the run.
     """
 
@@ -82,6 +84,7 @@ class _SQPState:
     abandon_above: float = math.inf
     abandoned: bool = False
     stalled: bool = False
+    cleared: PathDecision | None = None
 
 
 def solve_trajopt(problem: TrajOptProblem, deadline: float = math.inf, *,
@@ -177,7 +180,7 @@ def _penalty_loop(problem: TrajOptProblem, s: _SQPState) -> None:
     before = 0.0  # m, the collision violation as the level began (read only with stall_levels)
     for _ in range(cfg.max_penalty_increases + 1):
         _optimise_at_penalty(problem, s)
-        if s.out_of_budget or s.abandoned or problem.satisfied(s.ev):
+        if s.out_of_budget or s.abandoned or problem.satisfied(s.ev) or _cleared(problem, s):
             break
         if s.penalty_increases == cfg.max_penalty_increases:
             break
@@ -192,6 +195,25 @@ def _penalty_loop(problem: TrajOptProblem, s: _SQPState) -> None:
         s.mu *= cfg.penalty_increase
         s.penalty_increases += 1
         s.trust = max(s.trust, cfg.initial_trust_rad)
+
+
+def _cleared(problem: TrajOptProblem, s: _SQPState) -> bool:
+    """With ``validate_each_level``: whether the trajectory, short of the sphere model's
+    clearance only, passes the exact validation now (kept in ``s.cleared``), so that no
+    higher penalty pushes it off obstacles that its links do not touch."""
+    cfg = problem.config
+    if not (cfg.validate_each_level and cfg.accept_exact_clear and cfg.validate != "none"
+            and problem.unmet(s.ev) == {"collision_m"}):
+        return False
+    t0 = time.perf_counter()
+    decision = validate_path(problem.world, s.x.reshape(problem.n_waypoints, problem.dof),
+                             cfg.validate, cfg.substeps, s.deadline,
+                             max_segment_rad=cfg.validate_max_segment_rad)
+    s.timing["validate"] += time.perf_counter() - t0
+    if decision.valid is not True:
+        return False
+    s.cleared = decision
+    return True
 
 
 def _optimise_at_penalty(problem: TrajOptProblem, s: _SQPState) -> None:
@@ -262,7 +284,7 @@ def _finish(problem: TrajOptProblem, s: _SQPState, t_start: float, cpu_s: float
     Q = s.x.reshape(problem.n_waypoints, problem.dof)
     t0 = time.perf_counter()
     status, valid, certificate = _validated_status(problem, s, Q)
-    s.timing["validate"] = time.perf_counter() - t0
+    s.timing["validate"] += time.perf_counter() - t0
     total = time.perf_counter() - t_start
     s.timing["other"] = max(0.0, total - sum(s.timing.values()))
     s.timing["total"] = total
@@ -285,6 +307,8 @@ def _validated_status(problem: TrajOptProblem, s: _SQPState, Q: Array
     cfg = problem.config
     if s.abandoned:
         return "abandoned", None, None
+    if s.cleared is not None:   # validated at the end of its penalty level (_cleared)
+        return "exact_clear", s.cleared.valid, s.cleared.certificate
     satisfied = problem.satisfied(s.ev)
     status = ("converged" if s.converged else "iteration_limit") if satisfied else "infeasible"
     clearance_only = cfg.accept_exact_clear and problem.unmet(s.ev) == {"collision_m"}
