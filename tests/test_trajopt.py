@@ -350,17 +350,21 @@ def test_velocity_acceleration_and_torque_limits_hold_with_a_duration(pole, rng)
     assert r2.status == "infeasible" and r2.violations["velocity_rad"] > 0
 
 
-def test_sphere_clearance_shortfall_is_accepted_only_when_the_exact_check_passes(pole, rng):
-    """A clearance the sphere model cannot reach (30 cm from everything, table included): the
-    trajectory is "infeasible" by the optimiser's constraints; with ``accept_exact_clear``
-    the validation decides, and what it accepts is free by the exact checker."""
+def _free_line(pole, rng):
+    """(q0, q1, a 12-waypoint straight line between them) exactly free at 20 substeps."""
     for _ in range(50):
         q0, q1 = _free(pole, rng, 2)
         seed = straight_line_seed(q0, q1, 12)
         if pole.exact.path_valid(seed, substeps=20):
-            break
-    else:
-        pytest.fail("no free straight line among 50 pairs of free configurations")
+            return q0, q1, seed
+    pytest.fail("no free straight line among 50 pairs of free configurations")
+
+
+def test_sphere_clearance_shortfall_is_accepted_only_when_the_exact_check_passes(pole, rng):
+    """A clearance the sphere model cannot reach (30 cm from everything, table included): the
+    trajectory is "infeasible" by the optimiser's constraints; with ``accept_exact_clear``
+    the validation decides, and what it accepts is free by the exact checker."""
+    q0, q1, seed = _free_line(pole, rng)
     cfg = TrajOptConfig(safety_margin_m=0.35, check_distance_m=0.4, min_clearance_m=0.3,
                         max_iterations=8, max_penalty_increases=1)
     strict = solve_trajopt(build_trajopt(pole, q0, Goal.configuration(q1), seed,
@@ -379,13 +383,7 @@ def test_each_level_validated_ends_a_run_short_of_the_sphere_clearance_only(pole
     end; with it, the first level's trajectory is validated, passes, and the run ends there,
     "exact_clear", in fewer iterations — free by coal on every configuration at 100
     substeps. A level whose trajectory fails the validation goes on (one validation lost)."""
-    for _ in range(50):
-        q0, q1 = _free(pole, rng, 2)
-        seed = straight_line_seed(q0, q1, 12)
-        if pole.exact.path_valid(seed, substeps=20):
-            break
-    else:
-        pytest.fail("no free straight line among 50 pairs of free configurations")
+    q0, q1, seed = _free_line(pole, rng)
     cfg = TrajOptConfig(safety_margin_m=0.35, check_distance_m=0.4, min_clearance_m=0.3,
                         max_iterations=40, max_penalty_increases=3)
     goal = Goal.configuration(q1)
