@@ -61,9 +61,9 @@ class _SQPState:
         deadline: ``time.perf_counter()`` value, s. step_s: s, expected cost of the next step.
         timing: s per phase (collision, linearise, qp, validate, …).
         converged / out_of_budget / abandoned: why the current penalty's loop ended;
-        stalled: the penalty loop ended on ``stall_levels``; cleared: the exact validation
-        that ended it at a level short of the sphere model's clearance only
-        (``validate_each_level``).
+        stalled: the penalty loop ended on ``stall_levels``; validated: (x, its exact
+        validation) made at the end of a level short of the sphere model's clearance only
+        (``validate_each_level``), reused when x is the final trajectory.
         accepted: steps accepted. abandon_above: rad, the length that abandons the run.
     """
 
@@ -84,7 +84,7 @@ class _SQPState:
     abandon_above: float = math.inf
     abandoned: bool = False
     stalled: bool = False
-    cleared: PathDecision | None = None
+    validated: tuple[Array, PathDecision] | None = None
 
 
 def solve_trajopt(problem: TrajOptProblem, deadline: float = math.inf, *,
@@ -199,7 +199,7 @@ def _penalty_loop(problem: TrajOptProblem, s: _SQPState) -> None:
 
 def _cleared(problem: TrajOptProblem, s: _SQPState) -> bool:
     """With ``validate_each_level``: whether the trajectory, short of the sphere model's
-    clearance only, passes the exact validation now (kept in ``s.cleared``), so that no
+    clearance only, passes the exact validation now (kept in ``s.validated``), so that no
     higher penalty pushes it off obstacles that its links do not touch."""
     cfg = problem.config
     if not (cfg.validate_each_level and cfg.accept_exact_clear and cfg.validate != "none"
@@ -210,10 +210,8 @@ def _cleared(problem: TrajOptProblem, s: _SQPState) -> bool:
                              cfg.validate, cfg.substeps, s.deadline,
                              max_segment_rad=cfg.validate_max_segment_rad)
     s.timing["validate"] += time.perf_counter() - t0
-    if decision.valid is not True:
-        return False
-    s.cleared = decision
-    return True
+    s.validated = (s.x, decision)
+    return decision.valid is True
 
 
 def _optimise_at_penalty(problem: TrajOptProblem, s: _SQPState) -> None:
@@ -307,16 +305,19 @@ def _validated_status(problem: TrajOptProblem, s: _SQPState, Q: Array
     cfg = problem.config
     if s.abandoned:
         return "abandoned", None, None
-    if s.cleared is not None:   # validated at the end of its penalty level (_cleared)
-        return "exact_clear", s.cleared.valid, s.cleared.certificate
     satisfied = problem.satisfied(s.ev)
     status = ("converged" if s.converged else "iteration_limit") if satisfied else "infeasible"
     clearance_only = cfg.accept_exact_clear and problem.unmet(s.ev) == {"collision_m"}
     if cfg.validate == "none" or not (satisfied or clearance_only):
         return status, None, None
-    # short of the sphere model's margin only: the checker decides (config docstring)
-    valid, certificate = validate_path(problem.world, Q, cfg.validate, cfg.substeps,
-                                       s.deadline, max_segment_rad=cfg.validate_max_segment_rad)
+    # short of the sphere model's margin only: the checker decides (config docstring),
+    # unless it already has at the end of the last level (_cleared)
+    if s.validated is not None and s.validated[0] is s.x:
+        valid, certificate = s.validated[1]
+    else:
+        valid, certificate = validate_path(problem.world, Q, cfg.validate, cfg.substeps,
+                                           s.deadline,
+                                           max_segment_rad=cfg.validate_max_segment_rad)
     if valid is None:
         status = "timeout"
     elif satisfied and not valid:
