@@ -202,16 +202,29 @@ def _cleared(problem: TrajOptProblem, s: _SQPState) -> bool:
     clearance only, passes the exact validation now (kept in ``s.validated``), so that no
     higher penalty pushes it off obstacles that its links do not touch."""
     cfg = problem.config
-    if not (cfg.validate_each_level and cfg.accept_exact_clear and cfg.validate != "none"
-            and problem.unmet(s.ev) == {"collision_m"}):
+    if not (cfg.validate_each_level and cfg.validate != "none" and _clearance_only(problem, s)):
         return False
     t0 = time.perf_counter()
-    decision = validate_path(problem.world, s.x.reshape(problem.n_waypoints, problem.dof),
-                             cfg.validate, cfg.substeps, s.deadline,
-                             max_segment_rad=cfg.validate_max_segment_rad)
+    valid = _validation(problem, s).valid
     s.timing["validate"] += time.perf_counter() - t0
-    s.validated = (s.x, decision)
-    return decision.valid is True
+    return valid is True
+
+
+def _clearance_only(problem: TrajOptProblem, s: _SQPState) -> bool:
+    """Whether the sphere model's clearance is the only unmet constraint at s.ev and the
+    config lets the exact validation decide then (``accept_exact_clear``)."""
+    return problem.config.accept_exact_clear and problem.unmet(s.ev) == {"collision_m"}
+
+
+def _validation(problem: TrajOptProblem, s: _SQPState) -> PathDecision:
+    """The exact validation (``config.validate``) of the trajectory s.x, made once per x (kept
+    in ``s.validated``)."""
+    if s.validated is None or s.validated[0] is not s.x:
+        cfg = problem.config
+        s.validated = (s.x, validate_path(
+            problem.world, s.x.reshape(problem.n_waypoints, problem.dof), cfg.validate,
+            cfg.substeps, s.deadline, max_segment_rad=cfg.validate_max_segment_rad))
+    return s.validated[1]
 
 
 def _optimise_at_penalty(problem: TrajOptProblem, s: _SQPState) -> None:
@@ -281,7 +294,7 @@ def _finish(problem: TrajOptProblem, s: _SQPState, t_start: float, cpu_s: float
     """The result of the SQP's last trajectory, validated (``config.validate``)."""
     Q = s.x.reshape(problem.n_waypoints, problem.dof)
     t0 = time.perf_counter()
-    status, valid, certificate = _validated_status(problem, s, Q)
+    status, valid, certificate = _validated_status(problem, s)
     s.timing["validate"] += time.perf_counter() - t0
     total = time.perf_counter() - t_start
     s.timing["other"] = max(0.0, total - sum(s.timing.values()))
@@ -297,27 +310,20 @@ def _finish(problem: TrajOptProblem, s: _SQPState, t_start: float, cpu_s: float
               "stalled": s.stalled})
 
 
-def _validated_status(problem: TrajOptProblem, s: _SQPState, Q: Array
+def _validated_status(problem: TrajOptProblem, s: _SQPState
                       ) -> tuple[str, bool | None, PathCertificate | None]:
-    """(status, the validation's decision, its certificate) of the final trajectory Q (T, K)
-    rad: "converged" / "iteration_limit" / "infeasible" / "abandoned" from the SQP, then
+    """(status, the validation's decision, its certificate) of the final trajectory s.x:
+    "converged" / "iteration_limit" / "infeasible" / "abandoned" from the SQP, then
     "timeout", "collision" or "exact_clear" as the validation decides."""
     cfg = problem.config
     if s.abandoned:
         return "abandoned", None, None
     satisfied = problem.satisfied(s.ev)
     status = ("converged" if s.converged else "iteration_limit") if satisfied else "infeasible"
-    clearance_only = cfg.accept_exact_clear and problem.unmet(s.ev) == {"collision_m"}
-    if cfg.validate == "none" or not (satisfied or clearance_only):
+    if cfg.validate == "none" or not (satisfied or _clearance_only(problem, s)):
         return status, None, None
-    # short of the sphere model's margin only: the checker decides (config docstring),
-    # unless it already has at the end of the last level (_cleared)
-    if s.validated is not None and s.validated[0] is s.x:
-        valid, certificate = s.validated[1]
-    else:
-        valid, certificate = validate_path(problem.world, Q, cfg.validate, cfg.substeps,
-                                           s.deadline,
-                                           max_segment_rad=cfg.validate_max_segment_rad)
+    # short of the sphere model's margin only: the checker decides (config docstring)
+    valid, certificate = _validation(problem, s)
     if valid is None:
         status = "timeout"
     elif satisfied and not valid:
